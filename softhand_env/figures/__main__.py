@@ -1,0 +1,5 @@
+import sys
+
+from softhand_env.figures import main
+
+sys.exit(main())

@@ -1,0 +1,261 @@
+"""Typed, validated hand parameters and their YAML form.
+
+:class:`HandParams` holds every physical and numerical parameter of the hand in SI units. The
+YAML files in ``configs/hand/`` use keys that *name their unit* (``L_mm``, ``E_MPa``,
+``I_obj_kg_mm2`` ...); :func:`load_hand_params` converts them to SI, rejects unknown keys and
+out-of-range values with a message that names the key, and fills keys a file omits from the
+defaults (Table 5.1 of the dissertation).
+
+Key table (YAML key -> field, SI unit):
+
+===================  ==========  ============================================================
+YAML key             field       meaning (SI unit of the field)
+===================  ==========  ============================================================
+``L_mm``             L           finger length (m)
+``root_spacing_mm``  W_fi        distance between the finger roots 2 W_fi; the field is W_fi (m)
+``a_mm``             a           fingertip radius (m)
+``W_obj_mm``         W_obj       object width (m)
+``d_fi_mm``          d_fi        half finger thickness (m)
+``M_obj_kg``         M_obj       object mass (kg)
+``I_obj_kg_mm2``     I_obj       object moment of inertia (kg m^2)
+``I_1_kg_mm2``       I_1         right finger moment of inertia (kg m^2)
+``I_2_kg_mm2``       I_2         left finger moment of inertia (kg m^2)
+``M_deform_kg``      M_deform    inertia of the four deformation coordinates (kg); ``null``
+                                 means "equal to M_obj" as printed in Eq 5.14
+``E_MPa``            E           Young's modulus of the fingertip (Pa)
+``g_m_s2``           g           gravitational acceleration along -y (m/s^2)
+``c_n_Ns_m``         c_n         viscosity on d_n1, d_n2 (N s/m)
+``c_t_Ns_m``         c_t         viscosity on d_t1, d_t2 (N s/m)
+``Kp_Nm_rad``        Kp          PID proportional gain (N m/rad)
+``Kd_Nms_rad``       Kd          PID derivative gain (N m s/rad)
+``Ki_Nm_rads``       Ki          PID integral gain (N m/(rad s))
+``alpha_1_s``        alpha       CSM Baumgarte gain of the holonomic constraints (1/s)
+``beta_1_s``         beta        CSM Baumgarte gain of the non-holonomic constraints (1/s)
+``dt_ms``            dt          RK4 substep (s)
+``cross_term``       cross_term  sign of the d_n^2 d_t tan(theta_p) term: ``"uniform"`` (-1
+                                 for both fingers, default, mirror-symmetric) or
+                                 ``"printed"`` ((-1)^i as printed in Eq 5.5)
+``bending_scale``    bending     dimensionless factor on the bending term d_n d_t^2 (1 = Eq
+                                 5.5; large values hold d_t near zero, as in chapter 4)
+===================  ==========  ============================================================
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+CONFIG_DIR = Path(__file__).resolve().parent / "configs"
+
+#: Allowed values of :attr:`HandParams.cross_term`.
+CROSS_TERMS = ("uniform", "printed")
+
+
+@dataclass(frozen=True)
+class HandParams:
+    """All parameters of the two-finger soft hand, SI units (defaults: Table 5.1).
+
+    Instances are immutable and validated on construction; use :meth:`replace` to derive a
+    variant. ``ValueError`` names the offending field and its allowed range.
+    """
+
+    L: float = 0.0762
+    W_fi: float = 0.0485
+    a: float = 0.020
+    W_obj: float = 0.049
+    d_fi: float = 0.004
+    M_obj: float = 0.3
+    I_obj: float = 125e-6
+    I_1: float = 125e-6
+    I_2: float = 125e-6
+    M_deform: float | None = None
+    E: float = 0.232e6
+    g: float = 9.81
+    c_n: float = 300.0
+    c_t: float = 300.0
+    Kp: float = 300.0
+    Kd: float = 14.0
+    Ki: float = 0.1
+    alpha: float = 20000.0
+    beta: float = 10000.0
+    dt: float = 1e-4
+    cross_term: str = "uniform"
+    bending: float = 1.0
+
+    def __post_init__(self) -> None:
+        for f in dataclasses.fields(self):
+            value = getattr(self, f.name)
+            if f.name == "cross_term":
+                if value not in CROSS_TERMS:
+                    raise ValueError(f"cross_term must be one of {CROSS_TERMS} (got {value!r})")
+                continue
+            if f.name == "M_deform" and value is None:
+                continue
+            if isinstance(value, bool) or not isinstance(value, (int, float, np.floating)):
+                raise ValueError(f"{f.name} must be a real number (got {value!r})")
+            low, high, closed_low = _RANGES[f.name]
+            ok = math.isfinite(value) and value <= high
+            ok = ok and (value >= low if closed_low else value > low)
+            if not ok:
+                bracket = "[" if closed_low else "("
+                raise ValueError(
+                    f"{f.name} must be in {bracket}{low:g}, {high:g}] (got {value!r})"
+                )
+        if self.W_obj / 2 + self.a > self.W_fi - self.d_fi + self.L * 0.5:
+            raise ValueError(
+                "W_obj is too wide for the hand: W_obj/2 + a must be below W_fi - d_fi + L/2 "
+                f"(got W_obj={self.W_obj!r})"
+            )
+
+    @property
+    def m_deform(self) -> float:
+        """Inertia of each deformation coordinate d_n, d_t (kg); M_obj unless overridden."""
+        return self.M_obj if self.M_deform is None else float(self.M_deform)
+
+    @property
+    def cross_signs(self) -> tuple[float, float]:
+        """Sign of the cross term d_n^2 d_t tan(theta_p) for fingers 1 and 2."""
+        return (-1.0, -1.0) if self.cross_term == "uniform" else (-1.0, 1.0)
+
+    def replace(self, **changes: Any) -> HandParams:
+        """Return a validated copy with ``changes`` applied (field names, SI units)."""
+        return dataclasses.replace(self, **changes)
+
+    def to_yaml_dict(self) -> dict[str, Any]:
+        """The YAML form (unit-named keys), inverse of :func:`hand_params_from_dict`."""
+        out: dict[str, Any] = {}
+        for key, (field, scale) in YAML_KEYS.items():
+            value = getattr(self, field)
+            out[key] = value if (scale is None or value is None) else float(value) / scale
+        return out
+
+
+# field -> (low, high, low bound included)
+_RANGES: dict[str, tuple[float, float, bool]] = {
+    "L": (0.0, 1.0, False),
+    "W_fi": (0.0, 1.0, False),
+    "a": (0.0, 0.5, False),
+    "W_obj": (0.0, 1.0, False),
+    "d_fi": (0.0, 0.5, True),
+    "M_obj": (0.0, 100.0, False),
+    "I_obj": (0.0, 10.0, False),
+    "I_1": (0.0, 10.0, False),
+    "I_2": (0.0, 10.0, False),
+    "M_deform": (0.0, 100.0, False),
+    "E": (0.0, 1e10, False),
+    "g": (0.0, 100.0, True),
+    "c_n": (0.0, 1e6, True),
+    "c_t": (0.0, 1e6, True),
+    "Kp": (0.0, 1e6, True),
+    "Kd": (0.0, 1e6, True),
+    "Ki": (0.0, 1e6, True),
+    "alpha": (0.0, 1e7, False),
+    "beta": (0.0, 1e7, False),
+    "dt": (0.0, 1e-2, False),
+    "bending": (0.0, 1e9, False),
+}
+
+#: YAML key -> (HandParams field, multiply YAML value by this to get SI; None = no unit)
+YAML_KEYS: dict[str, tuple[str, float | None]] = {
+    "L_mm": ("L", 1e-3),
+    "root_spacing_mm": ("W_fi", 0.5e-3),
+    "a_mm": ("a", 1e-3),
+    "W_obj_mm": ("W_obj", 1e-3),
+    "d_fi_mm": ("d_fi", 1e-3),
+    "M_obj_kg": ("M_obj", 1.0),
+    "I_obj_kg_mm2": ("I_obj", 1e-6),
+    "I_1_kg_mm2": ("I_1", 1e-6),
+    "I_2_kg_mm2": ("I_2", 1e-6),
+    "M_deform_kg": ("M_deform", 1.0),
+    "E_MPa": ("E", 1e6),
+    "g_m_s2": ("g", 1.0),
+    "c_n_Ns_m": ("c_n", 1.0),
+    "c_t_Ns_m": ("c_t", 1.0),
+    "Kp_Nm_rad": ("Kp", 1.0),
+    "Kd_Nms_rad": ("Kd", 1.0),
+    "Ki_Nm_rads": ("Ki", 1.0),
+    "alpha_1_s": ("alpha", 1.0),
+    "beta_1_s": ("beta", 1.0),
+    "dt_ms": ("dt", 1e-3),
+    "cross_term": ("cross_term", None),
+    "bending_scale": ("bending", None),
+}
+_FIELD_TO_KEY = {field: key for key, (field, _) in YAML_KEYS.items()}
+
+
+def hand_params_from_dict(
+    data: Mapping[str, Any], base: HandParams | None = None, source: str = "config"
+) -> HandParams:
+    """Build :class:`HandParams` from a mapping with unit-named YAML keys.
+
+    Parameters
+    ----------
+    data : mapping
+        Keys from the table in the module docstring; values in the unit the key names.
+    base : HandParams, optional
+        Values for keys ``data`` omits (default: Table 5.1).
+    source : str
+        Name used in error messages (e.g. the file path).
+
+    Raises
+    ------
+    ValueError
+        Unknown key, non-numeric value or value out of range; the message names the key.
+    """
+    base = base if base is not None else HandParams()
+    changes: dict[str, Any] = {}
+    for key, value in data.items():
+        if key not in YAML_KEYS:
+            raise ValueError(
+                f"{source}: unknown key {key!r}; allowed keys: {', '.join(sorted(YAML_KEYS))}"
+            )
+        field, scale = YAML_KEYS[key]
+        if scale is not None and value is not None:
+            if isinstance(value, bool) or not isinstance(value, (int, float)):
+                raise ValueError(f"{source}: {key} must be a number (got {value!r})")
+            value = float(value) * scale
+        changes[field] = value
+    try:
+        return base.replace(**changes)
+    except ValueError as exc:
+        # re-word the field name as the YAML key the user wrote
+        msg = str(exc)
+        field = msg.split(" ", 1)[0]
+        key = _FIELD_TO_KEY.get(field)
+        if key is not None and key in data:
+            _, scale = YAML_KEYS[key]
+            msg = f"{key} (field {field}, SI value; YAML value x {scale:g}) " + msg.split(" ", 1)[1]
+        raise ValueError(f"{source}: {msg}") from None
+
+
+def load_hand_params(name_or_path: str | Path = "paper_ch5", **overrides: Any) -> HandParams:
+    """Load hand parameters from a YAML file or a built-in config name.
+
+    Parameters
+    ----------
+    name_or_path : str or Path
+        ``"paper_ch5"`` (Table 5.1), ``"paper_ch4"`` (Table 4.1 with the Table 5.1 root
+        spacing), or a path to a YAML file with unit-named keys.
+    **overrides
+        :class:`HandParams` field values in SI units applied after loading.
+    """
+    import yaml
+
+    path = Path(name_or_path)
+    if not path.suffix:
+        path = CONFIG_DIR / "hand" / f"{name_or_path}.yaml"
+    if not path.is_file():
+        builtin = sorted(p.stem for p in (CONFIG_DIR / "hand").glob("*.yaml"))
+        raise ValueError(f"hand config {str(name_or_path)!r} not found (built-in: {builtin})")
+    with path.open() as fh:
+        data = yaml.safe_load(fh) or {}
+    if not isinstance(data, dict):
+        raise ValueError(f"{path}: expected a mapping of keys to values")
+    params = hand_params_from_dict(data, source=str(path))
+    return params.replace(**overrides) if overrides else params
