@@ -73,6 +73,10 @@ Q_NAMES = ("x_obj", "y_obj", "theta_obj", "theta_1", "theta_2", "d_n1", "d_n2", 
 ) = range(23)
 N_PARAMS = 23
 
+# LLVM fast-math flags for the hot path: contraction (FMA), reciprocal and approximate-function
+# rewrites; no "nnan"/"ninf" so NaN detection keeps working.
+_FASTMATH = {"contract", "arcp", "afn", "reassoc", "nsz"}
+
 
 def pack_params(params: HandParams) -> np.ndarray:
     """Pack :class:`HandParams` into the float64 vector the compiled functions take.
@@ -124,7 +128,7 @@ def initial_state(params: HandParams) -> np.ndarray:
     return y
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", fastmath=_FASTMATH)
 def _finger(q, p, prm, i, co, so):
     """All model terms of finger i (0 = right, 1 = left) as a tuple of scalars.
 
@@ -300,7 +304,7 @@ def pid_torques(y, u, prm, tau):
         )
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", fastmath=_FASTMATH)
 def csm_rhs(y, u, prm, dy, diag):
     """Time derivative of the integrated state under the CSM (Eq 5.24) and PID (Eq 5.42).
 

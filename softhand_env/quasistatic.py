@@ -644,66 +644,23 @@ def _pack(params: HandParams) -> np.ndarray:
     )
 
 
-def fingertip_centres(theta: np.ndarray, params: HandParams) -> np.ndarray:
-    """Fingertip centres O_1, O_2 (Eqs 5.7-5.8).
-
-    Parameters
-    ----------
-    theta : array_like, shape (..., 2)
-        Finger angles (rad).
-    params : HandParams
-
-    Returns
-    -------
-    ndarray, shape (..., 2, 2)
-        ``[..., i, :]`` is (O_ix, O_iy) of finger i+1 (m).
-    """
-    th = np.asarray(theta, dtype=float)
-    sig = np.array([-1.0, 1.0])
-    ox = -sig * params.W_fi + sig * (params.L * np.sin(th) + params.d_fi * np.cos(th))
-    oy = params.L * np.cos(th) - params.d_fi * np.sin(th)
-    return np.stack([ox, oy], axis=-1)
-
-
-def contact_gap(params: HandParams | None = None) -> float:
-    """Gap (m) between object and fingertips with parallel fingers: 2(W_fi - d_fi - a) - W_obj.
-
-    Zero for the paper's parameters (the fingers touch the object at exactly one point).
-    """
-    p = _params(params)
-    return 2.0 * (p.W_fi - p.d_fi - p.a) - p.W_obj
-
-
 def initial_state(params: HandParams | None = None) -> QuasiStaticState:
     """Symmetric first-touch configuration: theta_1 = theta_2 = theta_t, d = 0, s = 0.
 
-    theta_t solves 2 O_1x(theta_t) = 2a + W_obj (theta_t = 0 for Tables 4.1/5.1, where the
-    parallel fingers touch the object exactly); the object centre is at the height of the
-    fingertip centres (GQ_i = 0) and theta_obj = 0.
+    theta_t is :func:`softhand_env.model.initial_finger_angle` (0 for Tables 4.1/5.1, where
+    the parallel fingers touch the object at exactly one point); the object centre is at the
+    height of the fingertip centres (GQ_i = 0, so s_i = 0) and theta_obj = 0. This is also the
+    chapter-5 dynamic model's initial state.
 
     Raises
     ------
     ValueError
-        If no first-touch angle exists in (-pi/4, pi/4).
+        If the geometry admits no point-contact state.
     """
+    from softhand_env.model import initial_finger_angle
+
     p = _params(params)
-    half = p.a + 0.5 * p.W_obj
-
-    def f(t: float) -> float:
-        return p.W_fi - p.L * math.sin(t) - p.d_fi * math.cos(t) - half
-
-    if abs(contact_gap(p)) <= 1e-12:
-        t = 0.0
-    else:
-        from scipy.optimize import brentq
-
-        lo, hi = -math.pi / 4, math.pi / 4
-        if f(lo) * f(hi) > 0:
-            raise ValueError(
-                "params: fingers cannot touch the object within +-45 deg "
-                f"(gap at parallel fingers {contact_gap(p):.4g} m)"
-            )
-        t = brentq(f, lo, hi, xtol=1e-15)
+    t = initial_finger_angle(p)
     oy = p.L * math.cos(t) - p.d_fi * math.sin(t)
     return QuasiStaticState(
         theta=np.array([t, t]), x=0.0, y=oy, theta_obj=0.0, d=np.zeros(2), s=np.zeros(2)
