@@ -358,8 +358,9 @@ def csm_rhs(y, u, prm, dy, diag):
     of = mo * fo
     alpha = prm[P_ALPHA]
     beta = prm[P_BETA]
-    r0 = -(bH1 + 2.0 * alpha * dCH1 + alpha * alpha * CH1) - (s1 * cf + A1 * of + B1 * m1 * ft1 + md * fdn1)
-    r1 = -(bH2 + 2.0 * alpha * dCH2 + alpha * alpha * CH2) - (s2 * cf + A2 * of + B2 * m2 * ft2 + md * fdn2)
+    a2 = alpha * alpha
+    r0 = -(bH1 + 2.0 * alpha * dCH1 + a2 * CH1) - (s1 * cf + A1 * of + B1 * m1 * ft1 + md * fdn1)
+    r1 = -(bH2 + 2.0 * alpha * dCH2 + a2 * CH2) - (s2 * cf + A2 * of + B2 * m2 * ft2 + md * fdn2)
     r2 = -(bN1 + beta * CN1) - (wf + E1 * of + F1 * m1 * ft1 + md * fdt1)
     r3 = -(bN2 + beta * CN2) - (wf + E2 * of + F2 * m2 * ft2 + md * fdt2)
     # Schur complement S = Phi M^-1 Phi^T, rows/cols ordered [H1, H2, N1, N2]

@@ -68,9 +68,8 @@ class Trajectory:
     def to_csv(self, path: str) -> None:
         """Write the trajectory as CSV with a header naming columns and SI units."""
         names = list(Q_NAMES) + [f"v_{n}" for n in Q_NAMES] + ["z_1", "z_2"]
-        header = ",".join(
-            ["t_s", "motion"] + names + ["theta_1_d", "theta_2_d", "max_CH_m", "max_CN_m_s", "flags"]
-        )
+        extra = ["theta_1_d", "theta_2_d", "max_CH_m", "max_CN_m_s", "flags"]
+        header = ",".join(["t_s", "motion"] + names + extra)
         data = np.column_stack(
             [self.t, self.motion, self.y, self.setpoint, self.max_ch, self.max_cn, self.flags]
         )

@@ -16,8 +16,17 @@ from pathlib import Path
 
 import numpy as np
 
-from softhand_env.model import DN_1, DT_1, NY, TH_1, TH_OBJ, X_OBJ, Y_OBJ, pack_params
-from softhand_env.model import constraint_residuals
+from softhand_env.model import (
+    DN_1,
+    DT_1,
+    NY,
+    TH_1,
+    TH_OBJ,
+    X_OBJ,
+    Y_OBJ,
+    constraint_residuals,
+    pack_params,
+)
 from softhand_env.params import load_hand_params
 
 
