@@ -9,6 +9,8 @@ divergence either by raising :class:`PhysicsError` (``strict=True``) or through
 
 from __future__ import annotations
 
+import math
+import warnings
 from dataclasses import dataclass
 
 import numpy as np
@@ -49,6 +51,49 @@ FLAG_NAMES = {
 def describe_flags(flags: int) -> list[str]:
     """Names of the status flags set in ``flags`` (see :mod:`softhand_env.kernel`)."""
     return [name for bit, name in FLAG_NAMES.items() if flags & bit]
+
+
+#: Extent of classic RK4's stability region on the negative real axis (|h lambda| <= 2.785).
+RK4_REAL_STABILITY = 2.785
+
+
+def rk4_stability_margins(params: HandParams) -> dict[str, float]:
+    """|lambda| dt of the stiffest modes of the model, to compare with RK4's limit 2.785.
+
+    Modes: the holonomic Baumgarte dynamics (double root -alpha), the non-holonomic one
+    (-beta), and the compression and bending modes of a fingertip at d_n = a/2 (stiffness
+    2 pi E d_n / cos^2 theta_p with theta_p = 0, resp. 2 k_b pi E d_n, on the deformation
+    inertia with the viscous damping c_n, c_t). Joint modes are left out: through the
+    constraints the fingers carry the deformation inertia, which keeps them far from the
+    limit for any plausible gains.
+
+    Returns
+    -------
+    dict
+        Mode name -> |lambda|_max * dt (dimensionless).
+    """
+
+    def fastest_root(m: float, c: float, k: float) -> float:
+        disc = c * c - 4.0 * m * k
+        if disc >= 0:
+            return (c + math.sqrt(disc)) / (2.0 * m)
+        return math.sqrt(k / m)
+
+    dn = params.a / 2
+    k_n = 2.0 * math.pi * params.E * dn
+    k_t = 2.0 * params.bending * math.pi * params.E * dn
+    m = params.m_deform
+    return {
+        "holonomic (alpha)": params.alpha * params.dt,
+        "non-holonomic (beta)": params.beta * params.dt,
+        "compression": fastest_root(m, params.c_n, k_n) * params.dt,
+        "bending": fastest_root(m, params.c_t, k_t) * params.dt,
+    }
+
+
+def check_rk4_stability(params: HandParams) -> list[str]:
+    """Names of the modes whose |lambda| dt exceeds RK4's stability limit (empty if none)."""
+    return [k for k, v in rk4_stability_margins(params).items() if v > RK4_REAL_STABILITY]
 
 
 @dataclass(frozen=True)
@@ -96,6 +141,7 @@ class HandPhysics:
 
     def __init__(self, params: HandParams | None = None, ch_limit: float = kernel.CH_LIMIT):
         self.params = params if params is not None else HandParams()
+        self._warn_if_unstable(self.params)
         self.ch_limit = float(ch_limit)
         self._prm = pack_params(self.params)
         self._y = initial_state(self.params)
@@ -126,8 +172,22 @@ class HandPhysics:
 
     def set_params(self, params: HandParams) -> None:
         """Change the parameters (e.g. domain randomisation); the state is kept."""
+        self._warn_if_unstable(params)
         self.params = params
         self._prm = pack_params(params)
+
+    @staticmethod
+    def _warn_if_unstable(params: HandParams) -> None:
+        unstable = check_rk4_stability(params)
+        if unstable:
+            margins = rk4_stability_margins(params)
+            detail = ", ".join(f"{k}: |lambda| dt = {margins[k]:.2f}" for k in unstable)
+            warnings.warn(
+                f"RK4 step dt = {params.dt:g} s is beyond the stability limit "
+                f"({RK4_REAL_STABILITY}) of the {detail}; expect divergence (reduce dt)",
+                RuntimeWarning,
+                stacklevel=3,
+            )
 
     def get_state(self) -> np.ndarray:
         """Copy of the state [q (9), p (9), z (2)], shape (20,)."""

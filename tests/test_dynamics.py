@@ -256,6 +256,7 @@ def test_bad_setpoints_raise_value_error(bad):
         physics.step(bad, 10)
 
 
+@pytest.mark.filterwarnings("ignore:RK4 step")
 def test_divergence_raises_physics_error_and_is_flagged():
     # RK4 at dt = 1 ms is unstable for alpha = 2e4 (alpha dt = 20 > 2.8)
     physics = HandPhysics(PARAMS.replace(dt=1e-3))
@@ -265,6 +266,28 @@ def test_divergence_raises_physics_error_and_is_flagged():
     assert info.value.flags & (kernel.FLAG_NONFINITE | kernel.FLAG_CONSTRAINT)
     status = HandPhysics(PARAMS.replace(dt=1e-3)).step(np.radians([6, 6]), 1000, strict=False)
     assert status.fatal and status.substeps < 1000
+
+
+def test_default_parameters_are_inside_rk4_stability():
+    from softhand_env.physics import check_rk4_stability, rk4_stability_margins
+
+    assert check_rk4_stability(PARAMS) == []
+    assert rk4_stability_margins(PARAMS)["holonomic (alpha)"] == pytest.approx(2.0)
+
+
+def test_stiff_bending_beyond_rk4_stability_warns_and_is_flagged():
+    """bending = 1e5 puts the d_t mode at |lambda| dt ~ 7: warned up front, and the run that
+    follows is stopped by a fatal flag rather than returning a wrong state silently."""
+    stiff = PARAMS.replace(bending=1e5, g=0.0)
+    with pytest.warns(RuntimeWarning, match="bending"):
+        physics = HandPhysics(stiff)
+    fatal = False
+    for k in range(60):
+        status = physics.step(np.radians([0.1 * (k + 1)] * 2), 100, strict=False)
+        if status.fatal:
+            fatal = True
+            break
+    assert fatal
 
 
 def test_opening_the_fingers_loses_the_grasp():
