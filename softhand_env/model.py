@@ -128,7 +128,7 @@ def initial_state(params: HandParams) -> np.ndarray:
     return y
 
 
-@njit(cache=True, error_model="numpy", fastmath=_FASTMATH)
+@njit(cache=True, error_model="numpy", fastmath=_FASTMATH, inline="always")
 def _finger(q, p, prm, i, co, so):
     """All model terms of finger i (0 = right, 1 = left) as a tuple of scalars.
 
