@@ -163,8 +163,46 @@ def plan_translation(
         Non-finite arguments, or a target outside the x range reachable with
         |phi| <= max_rotation (the message gives that range).
     """
+    return _plan_rotation(
+        "x", target_x, params, grasp_angle, step, max_rotation, tol, allow_base_violation
+    )
+
+
+def plan_reorientation(
+    target_theta: float,
+    params: HandParams | None = None,
+    grasp_angle: float = DEFAULT_GRASP,
+    *,
+    step: float = DEFAULT_STEP,
+    max_rotation: float = math.radians(20.0),
+    tol: float = 1e-7,
+    allow_base_violation: bool = True,
+) -> Plan:
+    """Set-points that turn the object to theta_obj = ``target_theta`` (rad) by rotating both
+    fingers together; the object's x follows from the model. Arguments as
+    :func:`plan_translation` (``tol`` in rad)."""
+    return _plan_rotation(
+        "theta_obj", target_theta, params, grasp_angle, step, max_rotation, tol,
+        allow_base_violation,
+    )
+
+
+def _plan_rotation(
+    quantity: str,
+    target: float,
+    params: HandParams | None,
+    grasp_angle: float,
+    step: float,
+    max_rotation: float,
+    tol: float,
+    allow_base_violation: bool,
+) -> Plan:
+    """Solve the common finger rotation phi at which ``quantity`` ("x" or "theta_obj") of the
+    quasi-static path reaches ``target`` (see :func:`plan_translation`)."""
+    name = "target_x" if quantity == "x" else "target_theta"
+    unit = "m" if quantity == "x" else "rad"
     p = resolve_params(params)
-    xt = _finite("target_x", target_x)
+    xt = _finite(name, target)
     max_rot = _finite("max_rotation", max_rotation)
     step = _finite("step", step)
     tol = _finite("tol", tol)
@@ -174,46 +212,50 @@ def plan_translation(
     grasp = gp.final
     g = grasp.theta
     rot = lambda phi: g + np.array([phi, -phi])  # noqa: E731
-    # scan both directions; x(phi) is sampled on the set-point grid
+    # scan both directions; the quantity is sampled on the set-point grid
     scans = []
     for sign in (1.0, -1.0):
         th = linear_path(g, rot(sign * max_rot), step)
         scans.append((sign, solve_path(th, p, grasp, on_failure="truncate")))
-    xs = np.concatenate([s.x for _, s in scans])
+    xs = np.concatenate([getattr(s, quantity) for _, s in scans])
     lo, hi = float(xs.min()), float(xs.max())
     if not lo - tol <= xt <= hi + tol:
         raise ValueError(
-            f"target_x = {xt:.6g} m is not reachable by rotating both fingers by at most "
+            f"{name} = {xt:.6g} {unit} is not reachable by rotating both fingers by at most "
             f"{math.degrees(max_rot):.3g} deg from the {math.degrees(g[0]):.3g} deg grasp: "
-            f"reachable x is [{lo:.6g}, {hi:.6g}] m"
+            f"reachable {quantity} is [{lo:.6g}, {hi:.6g}] {unit}"
             + "".join(f"; the {'CCW' if sg > 0 else 'CW'} rotation stops early: {s.status}"
                       for sg, s in scans if s.status != "ok")
         )
-    x0 = grasp.x
-    _, scan = scans[0] if (xt - x0) * (scans[0][1].x[-1] - x0) > 0 else scans[1]
+    x0 = getattr(grasp, quantity)
+    first = getattr(scans[0][1], quantity)
+    _, scan = scans[0] if (xt - x0) * (first[-1] - x0) > 0 else scans[1]
     phis = 0.5 * (scan.theta[:, 0] - scan.theta[:, 1])  # g[0] == g[1]
-    f = scan.x - xt
+    f = getattr(scan, quantity) - xt
     k = int(np.argmax(np.sign(f) != np.sign(f[0]))) if f[0] != 0 else 0
     if k == 0:
         phi = 0.0 if abs(f[0]) <= tol else float(phis[-1])
     else:
-        # bracketing interval [phis[k-1], phis[k]]; secant with the exact path end points
+        # bracketing interval [phis[k-1], phis[k]]; Brent with the exact path end points
         from scipy.optimize import brentq
 
         def resid(ph: float) -> float:
-            return float(_run(grasp, rot(ph), p, step).x[-1] - xt)
+            return float(getattr(_run(grasp, rot(ph), p, step), quantity)[-1] - xt)
 
         a_, b_ = float(phis[k - 1]), float(phis[k])
         phi = a_ if abs(f[k - 1]) <= tol * 1e-3 else brentq(resid, a_, b_, xtol=1e-13)
-    plan = _make_plan(gp.theta, grasp, rot(phi), p, step, (xt, math.nan))
-    if not abs(plan.error[0]) <= tol:
+    target_pair = (xt, math.nan) if quantity == "x" else (math.nan, xt)
+    plan = _make_plan(gp.theta, grasp, rot(phi), p, step, target_pair)
+    err = plan.error[0] if quantity == "x" else plan.error[1]
+    if not abs(err) <= tol:
         raise ValueError(
-            f"target_x = {xt:.6g} m: the planned sequence ends at x = {plan.final.x:.6g} m "
-            f"(error {plan.error[0]:.3g} m > tol {tol:.3g} m)"
+            f"{name} = {xt:.6g} {unit}: the planned sequence ends at "
+            f"{quantity} = {getattr(plan.final, quantity):.6g} {unit} "
+            f"(error {err:.3g} {unit} > tol {tol:.3g} {unit})"
         )
     if not allow_base_violation and plan.n_base_violation:
         raise ValueError(
-            f"target_x = {xt:.6g} m needs {plan.n_base_violation} increments with a contact "
+            f"{name} = {xt:.6g} {unit} needs {plan.n_base_violation} increments with a contact "
             "beyond the fingertip base (allow_base_violation=False)"
         )
     return plan

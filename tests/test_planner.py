@@ -118,3 +118,22 @@ def test_plan_pose_input_validation(params):
         pl.plan_pose(0.0, float("nan"), params)
     with pytest.raises(ValueError, match="squeeze_limits"):
         pl.plan_pose(0.0, 0.0, params, squeeze_limits=(0.01, 0.005))
+
+
+@pytest.mark.parametrize("target_deg", [-12.0, 3.0, 15.0])
+def test_plan_reorientation_round_trip(target_deg):
+    from softhand_env.planner import plan_reorientation
+
+    target = math.radians(target_deg)
+    plan = plan_reorientation(target)
+    replay = qs.solve_path(plan.setpoints, None, plan.grasp_state)
+    assert abs(replay.theta_obj[-1] - target) <= 1e-7
+    steps = np.abs(np.diff(plan.setpoints, axis=0)).max()
+    assert steps <= math.radians(0.1) * (1 + 1e-9)
+
+
+def test_plan_reorientation_rejects_unreachable_targets():
+    from softhand_env.planner import plan_reorientation
+
+    with pytest.raises(ValueError, match="target_theta"):
+        plan_reorientation(math.radians(40.0))
