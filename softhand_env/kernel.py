@@ -18,6 +18,8 @@ flag                   value  meaning
 ``FLAG_BASE``          16     the contact circle passed the fingertip base,
                               tan(theta_p) > (a - d_n)/a_c, where the closed-form energy
                               over-predicts (not fatal; checked at the end of the call)
+``FLAG_SKIP``          32     input only: :func:`advance_batch` leaves this system alone
+                              (e.g. an environment that restarts this step)
 =====================  =====  ==========================================================
 
 Integration stops at the substep where a fatal flag is raised, leaving the state at that
@@ -38,6 +40,7 @@ FLAG_CONSTRAINT = 2
 FLAG_LOST = 4
 FLAG_OVERCOMPRESSED = 8
 FLAG_BASE = 16
+FLAG_SKIP = 32
 FATAL_FLAGS = FLAG_NONFINITE | FLAG_CONSTRAINT | FLAG_LOST | FLAG_OVERCOMPRESSED
 #: Default bound on |C^H| (m) above which the state counts as diverged.
 CH_LIMIT = 1e-3
@@ -182,11 +185,12 @@ def advance_batch(Y, U, PRM, n, ch_limit, DIAG, FLAGS):
     DIAG : ndarray, shape (N, 2), output
         max |C^H| (m), max |C^N| (m/s) per system.
     FLAGS : ndarray of int64, shape (N,), output
-        Status flags per system. Systems that already carry a fatal flag on entry are skipped.
+        Status flags per system. On entry, systems carrying ``FLAG_SKIP`` or a fatal flag
+        are skipped (their flags are kept); the others get their new flags.
     """
     N = Y.shape[0]
     for s in prange(N):
-        if FLAGS[s] & FATAL_FLAGS:
+        if FLAGS[s] & (FATAL_FLAGS | FLAG_SKIP):
             continue
         k = np.empty((5, NY))
         work = np.zeros(N_DIAG)
@@ -217,6 +221,7 @@ __all__ = [
     "FLAG_LOST",
     "FLAG_NONFINITE",
     "FLAG_OVERCOMPRESSED",
+    "FLAG_SKIP",
     "advance",
     "advance_batch",
     "advance_batch_py",

@@ -96,6 +96,20 @@ def check_rk4_stability(params: HandParams) -> list[str]:
     return [k for k, v in rk4_stability_margins(params).items() if v > RK4_REAL_STABILITY]
 
 
+def warn_if_unstable(params: HandParams, stacklevel: int = 2) -> None:
+    """Emit a ``RuntimeWarning`` naming the modes beyond RK4's stability limit, if any."""
+    unstable = check_rk4_stability(params)
+    if unstable:
+        margins = rk4_stability_margins(params)
+        detail = ", ".join(f"{k}: |lambda| dt = {margins[k]:.2f}" for k in unstable)
+        warnings.warn(
+            f"RK4 step dt = {params.dt:g} s is beyond the stability limit "
+            f"({RK4_REAL_STABILITY}) of the {detail}; expect divergence (reduce dt)",
+            RuntimeWarning,
+            stacklevel=stacklevel + 1,
+        )
+
+
 @dataclass(frozen=True)
 class StepStatus:
     """Outcome of :meth:`HandPhysics.step`.
@@ -141,7 +155,7 @@ class HandPhysics:
 
     def __init__(self, params: HandParams | None = None, ch_limit: float = kernel.CH_LIMIT):
         self.params = params if params is not None else HandParams()
-        self._warn_if_unstable(self.params)
+        warn_if_unstable(self.params, stacklevel=2)
         self.ch_limit = float(ch_limit)
         self._prm = pack_params(self.params)
         self._y = initial_state(self.params)
@@ -166,28 +180,19 @@ class HandPhysics:
         return self._prm.copy()
 
     def reset(self, state: np.ndarray | None = None) -> None:
-        """Reset to ``state`` (20,) or to the paper's initial point-contact state."""
+        """Reset to ``state`` (20,) or to the paper's initial point-contact state.
+
+        The set-points become the state's finger angles (nothing commanded yet).
+        """
         self.set_state(initial_state(self.params) if state is None else state)
+        self._setpoint = self._y[TH_1 : TH_1 + 2].copy()
         self._time = 0.0
 
     def set_params(self, params: HandParams) -> None:
         """Change the parameters (e.g. domain randomisation); the state is kept."""
-        self._warn_if_unstable(params)
+        warn_if_unstable(params, stacklevel=2)
         self.params = params
         self._prm = pack_params(params)
-
-    @staticmethod
-    def _warn_if_unstable(params: HandParams) -> None:
-        unstable = check_rk4_stability(params)
-        if unstable:
-            margins = rk4_stability_margins(params)
-            detail = ", ".join(f"{k}: |lambda| dt = {margins[k]:.2f}" for k in unstable)
-            warnings.warn(
-                f"RK4 step dt = {params.dt:g} s is beyond the stability limit "
-                f"({RK4_REAL_STABILITY}) of the {detail}; expect divergence (reduce dt)",
-                RuntimeWarning,
-                stacklevel=3,
-            )
 
     def get_state(self) -> np.ndarray:
         """Copy of the state [q (9), p (9), z (2)], shape (20,)."""

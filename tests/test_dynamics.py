@@ -307,3 +307,24 @@ def test_readouts_are_copies():
     state = physics.get_state()
     state[0] = 1.0
     assert physics.get_state()[0] == 0.0
+
+
+def test_reset_sets_setpoints_to_the_finger_angles():
+    physics = HandPhysics()
+    physics.step(np.radians([6, 6]), 100)
+    state = physics.get_state()
+    physics.reset(state)
+    np.testing.assert_array_equal(physics.setpoint, state[model.TH_1 : model.TH_1 + 2])
+
+
+def test_batched_kernel_skips_flagged_systems():
+    prm = pack_params(PARAMS)
+    Y = np.stack([model.initial_state(PARAMS)] * 3)
+    Y0 = Y.copy()
+    DIAG = np.zeros((3, 2))
+    FLAGS = np.array([0, kernel.FLAG_SKIP, 0], dtype=np.int64)
+    kernel.advance_batch(Y, np.radians([[6.0, 6.0]] * 3), np.tile(prm, (3, 1)), 50, 1e-3, DIAG,
+                         FLAGS)
+    np.testing.assert_array_equal(Y[1], Y0[1])
+    assert FLAGS[1] == kernel.FLAG_SKIP and FLAGS[0] == 0
+    assert not np.array_equal(Y[0], Y0[0])
