@@ -1,0 +1,70 @@
+"""Gymnasium environments of the soft hand (physics / task / environment, dm_control style).
+
+Importing :mod:`softhand_env` calls :func:`register_envs`, which registers
+
+==========================  ===========  ==================================================
+id                          task         goal
+==========================  ===========  ==================================================
+``SoftHand-v0``             ``none``     none, reward 0 (scripted replay and evaluation)
+``SoftHandReorient-v0``     ``reorient`` object angle theta_obj to a sampled target
+``SoftHandTranslate-v0``    ``translate`` object position x_obj to a sampled target
+``SoftHandPose-v0``         ``pose``     x_obj and theta_obj together
+==========================  ===========  ==================================================
+
+all with the entry point :class:`SoftHandEnv` (the task is a keyword), ``max_episode_steps``
+from ``configs/tasks/<task>.yaml`` and the vector entry point :class:`SoftHandVectorEnv`
+(``gym.make_vec(id, num_envs=N, vectorization_mode="vector_entry_point")``). Registration
+imports only Gymnasium and PyYAML; the physics is imported when an environment is made.
+
+Modules: :mod:`.softhand` (the env and its manual), :mod:`.vector` (batched env),
+:mod:`.tasks`, :mod:`.task_configs`, :mod:`.actions`, :mod:`.observation`,
+:mod:`.randomization`, :mod:`.start` (grasp phase), :mod:`.config`, :mod:`.rendering`.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+#: Registered id -> task name.
+ENV_IDS: dict[str, str] = {
+    "SoftHand-v0": "none",
+    "SoftHandReorient-v0": "reorient",
+    "SoftHandTranslate-v0": "translate",
+    "SoftHandPose-v0": "pose",
+}
+
+ENTRY_POINT = "softhand_env.envs.softhand:SoftHandEnv"
+VECTOR_ENTRY_POINT = "softhand_env.envs.vector:SoftHandVectorEnv"
+
+
+def register_envs() -> None:
+    """Register every id of :data:`ENV_IDS` with Gymnasium (idempotent)."""
+    import gymnasium as gym
+
+    from softhand_env.envs.task_configs import load_task_config
+
+    for env_id, task in ENV_IDS.items():
+        if env_id in gym.registry:
+            continue
+        gym.register(
+            id=env_id,
+            entry_point=ENTRY_POINT,
+            vector_entry_point=VECTOR_ENTRY_POINT,
+            max_episode_steps=int(load_task_config(task)["max_episode_steps"]),
+            kwargs={"task": task},
+        )
+
+
+def __getattr__(name: str) -> Any:
+    if name == "SoftHandEnv":
+        from softhand_env.envs.softhand import SoftHandEnv
+
+        return SoftHandEnv
+    if name == "SoftHandVectorEnv":
+        from softhand_env.envs.vector import SoftHandVectorEnv
+
+        return SoftHandVectorEnv
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+
+
+__all__ = ["ENV_IDS", "SoftHandEnv", "SoftHandVectorEnv", "register_envs"]

@@ -1,0 +1,143 @@
+"""Actions: map the agent's action to the pair of finger-angle set-points the PID tracks.
+
+=====================================  ==========================================================
+mode                                   set-point u_t (rad) from action a
+=====================================  ==========================================================
+``"delta"`` (default)                  u_t = clip(u_{t-1} + clip(a, -1, 1) * max_delta, range)
+``"absolute"``                         u_t = mid + clip(a, -1, 1) * half_width of the joint range
+``"absolute"``, ``normalize_action``   u_t = clip(a, range): the action IS the set-point pair in
+=False                                 rad and the action space is the joint range in rad
+=====================================  ==========================================================
+
+Out-of-range actions are clipped (as above); NaN or inf raise ``ValueError``. The same compiled
+code maps one action (shape (2,)) or a batch (shape (N, 2)) and computes the control cost
+|u_t - u_{t-1}|^2 / max_delta^2 of the reward.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from typing import Any
+
+import numpy as np
+from gymnasium import spaces
+from numba import njit
+
+ACTION_MODES = ("delta", "absolute")
+
+
+class ActionMap:
+    """Action space and action -> set-point mapping (see module doc).
+
+    Parameters
+    ----------
+    action_mode : str
+        ``"delta"`` or ``"absolute"``.
+    normalize_action : bool
+        If False (only with ``"absolute"``), the action space is the joint range in rad.
+    max_delta_deg : float
+        Largest set-point change per control step in ``"delta"`` mode (deg); also the unit of
+        the control cost.
+    joint_range_deg : (float, float)
+        Set-point limits (deg), low < high.
+    """
+
+    def __init__(
+        self,
+        action_mode: str,
+        normalize_action: bool,
+        max_delta_deg: float,
+        joint_range_deg: Sequence[float],
+    ):
+        if action_mode not in ACTION_MODES:
+            raise ValueError(f"action_mode must be one of {ACTION_MODES} (got {action_mode!r})")
+        if not normalize_action and action_mode != "absolute":
+            raise ValueError('normalize_action=False requires action_mode="absolute"')
+        if not (math.isfinite(max_delta_deg) and max_delta_deg > 0):
+            raise ValueError(f"max_delta_deg must be finite and > 0 (got {max_delta_deg!r})")
+        lo, hi = (float(v) for v in joint_range_deg)
+        if not (math.isfinite(lo) and math.isfinite(hi) and -90.0 < lo < hi < 90.0):
+            raise ValueError(
+                f"joint_range_deg must be (low, high) with -90 < low < high < 90 (got "
+                f"{tuple(joint_range_deg)!r})"
+            )
+        self.mode = action_mode
+        self.normalize = bool(normalize_action)
+        self.delta = action_mode == "delta"
+        self.max_delta = math.radians(max_delta_deg)
+        self.low = math.radians(lo)
+        self.high = math.radians(hi)
+        self._mid = 0.5 * (self.low + self.high)
+        self._half = 0.5 * (self.high - self.low)
+        self._kind = 0 if self.delta else (1 if self.normalize else 2)
+
+    def space(self) -> spaces.Box:
+        """[-1, 1]^2, or the joint range in rad when not normalised (float32)."""
+        if self.normalize:
+            return spaces.Box(-1.0, 1.0, shape=(2,), dtype=np.float32)
+        return spaces.Box(self.low, self.high, shape=(2,), dtype=np.float32)
+
+    def setpoints(self, action: np.ndarray, previous: np.ndarray) -> tuple[np.ndarray, Any]:
+        """New set-points (rad) and the control cost |u - previous|^2 / max_delta^2.
+
+        Parameters
+        ----------
+        action : array_like, shape (2,) or (N, 2)
+        previous : ndarray of float64, shape (2,) or (N, 2)
+            Set-points of the previous step (rad).
+
+        Returns
+        -------
+        u : ndarray of float64, shape of ``previous``
+        ctrl : float or ndarray (N,)
+
+        Raises
+        ------
+        ValueError
+            Wrong shape, or NaN/inf in the action.
+        """
+        a = np.asarray(action)
+        if a.dtype != np.float32 and a.dtype != np.float64:
+            a = a.astype(np.float64)
+        if a.shape != previous.shape:
+            raise ValueError(f"action must have shape {previous.shape} (got {a.shape})")
+        u = np.empty_like(previous)
+        ctrl = np.empty(u.size // 2)
+        ok = _map_setpoints(
+            a.reshape(-1),
+            previous.reshape(-1),
+            self._kind,
+            self.max_delta,
+            self._mid,
+            self._half,
+            self.low,
+            self.high,
+            u.reshape(-1),
+            ctrl,
+        )
+        if not ok:
+            raise ValueError(f"action must be finite (got {a.tolist()})")
+        return u, (float(ctrl[0]) if previous.ndim == 1 else ctrl)
+
+
+@njit(cache=True)
+def _map_setpoints(a, prev, kind, max_delta, mid, half, low, high, u, ctrl):
+    """Set-points u and control costs ctrl for flattened (2N,) actions; False on NaN/inf.
+
+    ``kind``: 0 = delta, 1 = absolute normalised, 2 = absolute in rad (module doc).
+    """
+    for j in range(a.size):
+        if not math.isfinite(a[j]):
+            return False
+    for j in range(a.size):
+        x = float(a[j])
+        if kind != 2:
+            x = min(max(x, -1.0), 1.0)
+            x = prev[j] + x * max_delta if kind == 0 else mid + x * half
+        u[j] = min(max(x, low), high)
+    for s in range(ctrl.size):
+        d0 = (u[2 * s] - prev[2 * s]) / max_delta
+        d1 = (u[2 * s + 1] - prev[2 * s + 1]) / max_delta
+        ctrl[s] = d0 * d0 + d1 * d1
+    return True

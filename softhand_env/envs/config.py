@@ -1,0 +1,162 @@
+"""Validated, resolved environment configuration shared by the single and the vector env.
+
+:func:`build_config` turns the keyword arguments of :class:`~softhand_env.envs.SoftHandEnv`
+(whose signature is the single source of the defaults) into an :class:`EnvConfig`: hand
+parameters loaded from ``configs/hand/<hand>.yaml``, the task with its defaults from
+``configs/tasks/<task>.yaml``, the action map, the observation layout, the control period in
+substeps and the randomisation settings.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from softhand_env.envs.actions import ActionMap
+from softhand_env.envs.observation import ObservationLayout
+from softhand_env.envs.randomization import PRESET, Randomization
+from softhand_env.envs.tasks import TASK_KWARGS, Task, make_task
+from softhand_env.params import HandParams, load_hand_params
+
+#: Allowed ``render_mode`` values.
+RENDER_MODES = ("human", "rgb_array")
+
+
+@dataclass(frozen=True)
+class EnvConfig:
+    """Everything an environment needs besides its state (see :func:`build_config`).
+
+    Attributes
+    ----------
+    task : Task
+    params : HandParams
+        Nominal hand parameters (SI).
+    actions : ActionMap
+    layout : ObservationLayout
+    n_substeps : int
+        RK4 substeps per control step.
+    dt : float
+        Control period (s) = n_substeps * params.dt.
+    grasp_setpoint : ndarray, shape (2,)
+        Grasp set-points (rad); also the first set-points of an episode.
+    n_grasp : int
+        Grasp phase in substeps.
+    reset_noise : float
+        Half-width (rad) of uniform noise on the grasp set-points.
+    randomization : Randomization
+    dn_limit : float
+        Over-compression limit on d_n (m).
+    ch_limit : float
+        Divergence limit on |C^H| (m).
+    render_mode : str or None
+    render_size : (int, int)
+        Frame (width, height) in pixels.
+    """
+
+    task: Task
+    params: HandParams
+    actions: ActionMap
+    layout: ObservationLayout
+    n_substeps: int
+    dt: float
+    grasp_setpoint: np.ndarray
+    n_grasp: int
+    reset_noise: float
+    randomization: Randomization
+    dn_limit: float
+    ch_limit: float
+    render_mode: str | None
+    render_size: tuple[int, int]
+
+
+def _pair(name: str, value: Sequence[float]) -> tuple[float, float]:
+    try:
+        a, b = (float(v) for v in value)
+    except (TypeError, ValueError):
+        raise ValueError(f"{name} must be a pair of numbers (got {value!r})") from None
+    if not (math.isfinite(a) and math.isfinite(b)):
+        raise ValueError(f"{name} must be finite (got {value!r})")
+    return a, b
+
+
+def _number(name: str, value: Any, low: float, high: float = math.inf) -> float:
+    if isinstance(value, bool) or not isinstance(value, (int, float, np.floating, np.integer)):
+        raise ValueError(f"{name} must be a number (got {value!r})")
+    if not (math.isfinite(value) and low <= value <= high):
+        raise ValueError(f"{name} must be in [{low:g}, {high:g}] (got {value!r})")
+    return float(value)
+
+
+def build_config(
+    *,
+    task: str,
+    action_mode: str,
+    normalize_action: bool,
+    max_delta_deg: float,
+    joint_range_deg: Sequence[float],
+    control_dt: float,
+    obs_mode: str,
+    history_len: int,
+    grasp_setpoint_deg: Sequence[float],
+    grasp_duration: float,
+    reset_noise_deg: float,
+    hand: str,
+    hand_overrides: Mapping[str, Any] | None,
+    overcompression_ratio: float,
+    ch_limit: float,
+    randomize: bool,
+    render_mode: str | None,
+    render_width: int,
+    render_height: int,
+    **rest: Any,
+) -> EnvConfig:
+    """Validate the environment keywords and resolve them into an :class:`EnvConfig`.
+
+    ``rest`` holds the task keywords (:data:`~softhand_env.envs.tasks.TASK_KWARGS`) and the
+    randomisation keywords (``rand_*``, ``obs_noise``). Raises ``ValueError`` naming the keyword.
+    """
+    task_kw = {k: rest.pop(k) for k in TASK_KWARGS if k in rest}
+    rand_kw = {k: rest.pop(k) for k in PRESET if k in rest}
+    if rest:
+        raise TypeError(f"unexpected keyword arguments {sorted(rest)}")
+    params = load_hand_params(hand, **dict(hand_overrides or {}))
+    control_dt = _number("control_dt", control_dt, 0.0)
+    n_substeps = round(control_dt / params.dt)
+    if n_substeps < 1 or abs(n_substeps * params.dt - control_dt) > 1e-9:
+        raise ValueError(
+            f"control_dt must be a positive multiple of the RK4 substep {params.dt:g} s "
+            f"(got {control_dt!r})"
+        )
+    grasp_duration = _number("grasp_duration", grasp_duration, 0.0)
+    n_grasp = round(grasp_duration / params.dt)
+    if abs(n_grasp * params.dt - grasp_duration) > 1e-9:
+        raise ValueError(
+            f"grasp_duration must be a multiple of the RK4 substep {params.dt:g} s "
+            f"(got {grasp_duration!r})"
+        )
+    if render_mode is not None and render_mode not in RENDER_MODES:
+        raise ValueError(f"render_mode must be None or one of {RENDER_MODES} (got {render_mode!r})")
+    for name, value in (("render_width", render_width), ("render_height", render_height)):
+        if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 16:
+            raise ValueError(f"{name} must be an int >= 16 (got {value!r})")
+    task_obj = make_task(task, **task_kw)
+    return EnvConfig(
+        task=task_obj,
+        params=params,
+        actions=ActionMap(action_mode, normalize_action, max_delta_deg, joint_range_deg),
+        layout=ObservationLayout(obs_mode, history_len, tuple(t.name for t in task_obj.targets)),
+        n_substeps=n_substeps,
+        dt=n_substeps * params.dt,
+        grasp_setpoint=np.radians(_pair("grasp_setpoint_deg", grasp_setpoint_deg)),
+        n_grasp=n_grasp,
+        reset_noise=math.radians(_number("reset_noise_deg", reset_noise_deg, 0.0, 10.0)),
+        randomization=Randomization.resolve(bool(randomize), **rand_kw),
+        dn_limit=_number("overcompression_ratio", overcompression_ratio, 1e-3, 1.0) * params.a,
+        ch_limit=_number("ch_limit", ch_limit, 1e-12),
+        render_mode=render_mode,
+        render_size=(int(render_width), int(render_height)),
+    )

@@ -1,0 +1,190 @@
+"""Observations: what the hand senses at its joints (and, optionally, in its fingertips).
+
+The observation is a pure function of the finger part of the physics state, the set-points and
+the PID gains (:func:`observe_row`); it never reads the object's pose or velocity. Information
+about the object that reaches the joints through the contact forces over time (joint angles
+lagging their set-points, PID torques) is *sensing* and allowed: that is what blind
+manipulation means here.
+
+Layout of one frame (float32, in this order, each divided by its scale)::
+
+    index  name        quantity                               unit    scale
+    0, 1   theta_1/2   joint angles                           rad     ANGLE_SCALE (30 deg)
+    2, 3   omega_1/2   joint velocities                       rad/s   VELOCITY_SCALE (5)
+    4, 5   setpoint_1/2 current PID set-points                rad     ANGLE_SCALE
+    6, 7   torque_1/2  PID torques (Eq 5.42)                  N m     TORQUE_SCALE (10)
+    8, 9   d_n1/2      normal fingertip deformation [tactile] m       DN_SCALE (10 mm)
+    10, 11 d_t1/2      tangential deformation [tactile]       m       DT_SCALE (1 mm)
+
+The observation is ``history_len`` frames, newest first, followed by the goal of goal tasks
+(x target / POSITION_SCALE (30 mm), theta target / ANGLE_SCALE). Every entry is clipped to
+[-OBS_BOUND, OBS_BOUND] = [-100, 100], the bounds of the observation space.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from gymnasium import spaces
+from numba import njit
+
+from softhand_env.model import DN_1, DN_2, DT_1, DT_2, NQ, TH_1, TH_2, pid_torques
+
+#: Angles (rad) are divided by this (30 deg).
+ANGLE_SCALE = math.radians(30.0)
+#: Joint velocities (rad/s) are divided by this.
+VELOCITY_SCALE = 5.0
+#: PID torques (N m) are divided by this.
+TORQUE_SCALE = 10.0
+#: Normal deformations d_n (m) are divided by this (the model's validity limit a/2 of Table 5.1).
+DN_SCALE = 0.01
+#: Tangential deformations d_t (m) are divided by this.
+DT_SCALE = 0.001
+#: Object x targets (m) are divided by this.
+POSITION_SCALE = 0.03
+#: Every observation entry is clipped to [-OBS_BOUND, OBS_BOUND] (the observation space bounds;
+#: reached only by PID torque spikes above 1000 N m or a diverging state).
+OBS_BOUND = 100.0
+
+PROPRIO_NAMES = (
+    "theta_1",
+    "theta_2",
+    "omega_1",
+    "omega_2",
+    "setpoint_1",
+    "setpoint_2",
+    "torque_1",
+    "torque_2",
+)
+TACTILE_NAMES = ("d_n1", "d_n2", "d_t1", "d_t2")
+OBS_MODES = ("proprio", "proprio_tactile")
+
+
+@njit(cache=True)
+def _clip(v):
+    return min(max(v, -OBS_BOUND), OBS_BOUND)
+
+
+@njit(cache=True)
+def observe_row(y, u, prm, tactile, out):
+    """Write one scaled frame into ``out[:8]`` (``out[:12]`` with ``tactile``).
+
+    Parameters
+    ----------
+    y : ndarray, shape (20,)
+        Physics state [q, p, z]; only the finger entries (theta_i, their velocities, the PID
+        integrals z_i and, with ``tactile``, the deformations) are read.
+    u : ndarray, shape (2,)
+        Set-points (rad).
+    prm : ndarray, shape (N_PARAMS,)
+        Packed parameters (only the PID gains are read).
+    tactile : bool
+        Append d_n1, d_n2, d_t1, d_t2.
+    out : ndarray, shape (>= frame size,)
+        Output (any float dtype).
+    """
+    tau = np.empty(2)
+    pid_torques(y, u, prm, tau)
+    out[0] = _clip(y[TH_1] / ANGLE_SCALE)
+    out[1] = _clip(y[TH_2] / ANGLE_SCALE)
+    out[2] = _clip(y[NQ + TH_1] / VELOCITY_SCALE)
+    out[3] = _clip(y[NQ + TH_2] / VELOCITY_SCALE)
+    out[4] = _clip(u[0] / ANGLE_SCALE)
+    out[5] = _clip(u[1] / ANGLE_SCALE)
+    out[6] = _clip(tau[0] / TORQUE_SCALE)
+    out[7] = _clip(tau[1] / TORQUE_SCALE)
+    if tactile:
+        out[8] = _clip(y[DN_1] / DN_SCALE)
+        out[9] = _clip(y[DN_2] / DN_SCALE)
+        out[10] = _clip(y[DT_1] / DT_SCALE)
+        out[11] = _clip(y[DT_2] / DT_SCALE)
+
+
+@njit(cache=True)
+def observe_batch(Y, U, PRM, tactile, OUT):
+    """:func:`observe_row` for each row of Y (N, 20), U (N, 2), PRM (N, N_PARAMS) into OUT."""
+    for s in range(Y.shape[0]):
+        observe_row(Y[s], U[s], PRM[s], tactile, OUT[s])
+
+
+class ObservationLayout:
+    """Sizes and names of the observation vector.
+
+    Parameters
+    ----------
+    obs_mode : str
+        ``"proprio"`` or ``"proprio_tactile"``.
+    history_len : int
+        Number of frames (>= 1), newest first.
+    goal_names : tuple of str
+        Names of the goal entries appended at the end.
+    """
+
+    def __init__(self, obs_mode: str, history_len: int, goal_names: tuple[str, ...]):
+        if obs_mode not in OBS_MODES:
+            raise ValueError(f"obs_mode must be one of {OBS_MODES} (got {obs_mode!r})")
+        if isinstance(history_len, bool) or not isinstance(history_len, (int, np.integer)):
+            raise ValueError(f"history_len must be an int >= 1 (got {history_len!r})")
+        if history_len < 1:
+            raise ValueError(f"history_len must be >= 1 (got {history_len!r})")
+        self.tactile = obs_mode == "proprio_tactile"
+        self.history_len = int(history_len)
+        frame = PROPRIO_NAMES + (TACTILE_NAMES if self.tactile else ())
+        self.frame_size = len(frame)
+        self.history_size = self.frame_size * self.history_len
+        self.goal_size = len(goal_names)
+        self.size = self.history_size + self.goal_size
+        names = [n if k == 0 else f"{n}[t-{k}]" for k in range(self.history_len) for n in frame]
+        self.names = tuple(names) + tuple(f"goal_{g}" for g in goal_names)
+
+    def space(self) -> spaces.Box:
+        """float32 Box [-OBS_BOUND, OBS_BOUND]^size."""
+        return spaces.Box(-OBS_BOUND, OBS_BOUND, shape=(self.size,), dtype=np.float32)
+
+
+def add_frame_noise(frame: np.ndarray, std: float, rng: np.random.Generator) -> None:
+    """Add N(0, std^2) noise (scaled units) to one frame in place, drawn from ``rng``; clip."""
+    frame += rng.normal(0.0, std, size=frame.shape[-1])
+    np.clip(frame, -OBS_BOUND, OBS_BOUND, out=frame)
+
+
+def reset_observation(
+    out: np.ndarray,
+    layout: ObservationLayout,
+    y: np.ndarray,
+    u: np.ndarray,
+    prm: np.ndarray,
+    goal_obs: np.ndarray,
+    noise: float,
+    rng: np.random.Generator,
+) -> None:
+    """Fill one observation (D,) at reset: the first frame in every history slot, then the goal.
+
+    ``noise`` > 0 draws the frame's noise from ``rng`` (once; the copies share it).
+    """
+    f = layout.frame_size
+    out[layout.history_size :] = goal_obs
+    observe_row(y, u, prm, layout.tactile, out)
+    if noise > 0:
+        add_frame_noise(out[:f], noise, rng)
+    for k in range(1, layout.history_len):
+        out[k * f : (k + 1) * f] = out[:f]
+
+
+def push_frame(
+    out: np.ndarray,
+    layout: ObservationLayout,
+    y: np.ndarray,
+    u: np.ndarray,
+    prm: np.ndarray,
+    noise: float,
+    rng: np.random.Generator,
+) -> None:
+    """Shift the history of one observation (D,) by a frame and write the newest frame."""
+    f, h = layout.frame_size, layout.history_size
+    if h > f:
+        out[f:h] = out[: h - f]
+    observe_row(y, u, prm, layout.tactile, out)
+    if noise > 0:
+        add_frame_noise(out[:f], noise, rng)

@@ -1,0 +1,387 @@
+"""The single soft-hand environment (:class:`SoftHandEnv`); its docstring is the user manual."""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+
+from softhand_env import kernel
+from softhand_env.envs.config import RENDER_MODES, build_config
+from softhand_env.envs.observation import observe_row, push_frame, reset_observation
+from softhand_env.envs.start import start_episode
+from softhand_env.envs.tasks import failure_state, termination_reason
+from softhand_env.model import DN_1, DT_2, TH_OBJ, X_OBJ, pack_params
+from softhand_env.physics import HandPhysics
+
+
+class SoftHandEnv(gym.Env):
+    r"""Blind manipulation with a soft-fingered, two-joint hand (chapter-5 dynamic model).
+
+    ## Description
+
+    Two fingers, one rotary joint each, with hemispherical soft fingertips hold a rigid planar
+    object between them (finger 1 on the right, finger 2 on the left; theta_i > 0 turns finger
+    i inward; theta_obj > 0 is counter-clockwise). The fingertips are virtual-spring contacts
+    (normal deformation d_n, tangential d_t) with rolling constraints, integrated by RK4 at
+    0.1 ms with constraint stabilisation; a PID loop in every substep makes each finger track
+    its set-point. The agent commands the two set-points once per control period
+    (``control_dt``, default 20 ms) and must move the object **blind**: it observes only its
+    own joints (angles, velocities, set-points, PID torques) and, optionally, the fingertip
+    deformations, never the object's pose. Information about the object that reaches the
+    joints through the contact forces over time is sensing and allowed. The object's pose is
+    in ``info`` for evaluation only.
+
+    Moving both fingers the same way translates *and* rotates the object (rolling couples
+    x and theta, an S-shaped path); reaching x and theta independently needs non-holonomic
+    (rolling) manoeuvres. Squeezing is limited: from the default grasp (6 deg, 6 deg; d_n
+    about 7 mm) a couple of degrees more on both fingers exceeds the fingertip model's
+    validity limit d_n = a/2 = 10 mm, and opening them drops the object.
+
+    Registered ids (defaults of the task keywords in ``configs/tasks/<task>.yaml``):
+
+    | id                      | task        | goal                        | max_episode_steps |
+    |-------------------------|-------------|-----------------------------|-------------------|
+    | `SoftHand-v0`           | `none`      | none, reward 0 (replay)     | 500 (10 s)        |
+    | `SoftHandReorient-v0`   | `reorient`  | theta_obj to theta*         | 250 (5 s)         |
+    | `SoftHandTranslate-v0`  | `translate` | x_obj to x*                 | 250 (5 s)         |
+    | `SoftHandPose-v0`       | `pose`      | x_obj to x* and theta* both | 400 (8 s)         |
+
+    ## Action Space
+
+    ``Box(-1, 1, (2,), float32)``; one entry per finger, mapped to the set-points
+    (theta_1^d, theta_2^d) that the PID tracks during the next control period:
+
+    | index | `action_mode="delta"` (default)        | `action_mode="absolute"`        | unit |
+    |-------|----------------------------------------|---------------------------------|------|
+    | 0     | change of theta_1^d, x `max_delta_deg` | theta_1^d over `joint_range_deg`| rad  |
+    | 1     | change of theta_2^d, x `max_delta_deg` | theta_2^d over `joint_range_deg`| rad  |
+
+    With ``action_mode="absolute", normalize_action=False`` the action space is
+    ``Box(low, high, (2,), float32)`` with the joint range in rad and the action *is* the
+    set-point pair in radians (used by scripted replay; the float64 values passed are used
+    unrounded). Out-of-range actions are clipped (to [-1, 1], then set-points to the joint
+    range); NaN or inf raise ``ValueError``.
+
+    ## Observation Space
+
+    ``Box(-100, 100, (n,), float32)`` (entries clipped to the bounds, reached only by torque
+    spikes above 1000 N m or a diverging state); ``history_len`` frames (newest first), then
+    the goal:
+
+    | index   | name                 | quantity                          | unit  | divided by |
+    |---------|----------------------|-----------------------------------|-------|------------|
+    | 0, 1    | theta_1, theta_2     | joint angles                      | rad   | 30 deg     |
+    | 2, 3    | omega_1, omega_2     | joint velocities                  | rad/s | 5          |
+    | 4, 5    | setpoint_1, _2       | current set-points                | rad   | 30 deg     |
+    | 6, 7    | torque_1, torque_2   | PID torques (Eq 5.42)             | N m   | 10         |
+    | 8, 9    | d_n1, d_n2           | normal deformations (tactile)     | m     | 10 mm      |
+    | 10, 11  | d_t1, d_t2           | tangential deformations (tactile) | m     | 1 mm       |
+    | end     | goal_x, goal_theta   | target x / theta (goal tasks)     | m/rad | 30 mm/30 deg|
+
+    Entries 8-11 exist only with ``obs_mode="proprio_tactile"`` (frame size 12, else 8). The
+    frame is a function of the finger part of the state, the set-points and the PID gains
+    only (:func:`softhand_env.envs.observation.observe_row`). ``obs_noise`` adds Gaussian noise
+    of that standard deviation (scaled units) to each frame.
+
+    ## Rewards
+
+    ``SoftHand-v0`` (task ``none``): always 0, no reward terms. Goal tasks: the sum of four
+    named terms, each copied to ``info``:
+
+    - ``reward_goal = goal_weight * exp(-e)``, e = sum over targets of |p - p*| / scale
+      (scale ``x_scale_mm``, ``theta_scale_deg``); in (0, goal_weight], so surviving is never
+      worse than dropping the object.
+    - ``reward_success = success_weight * is_success``; ``is_success`` = every target within
+      its tolerance (``x_tolerance_mm``, ``theta_tolerance_deg``) while grasped.
+    - ``reward_ctrl = -ctrl_weight * |u_t - u_{t-1}|^2 / max_delta^2`` (set-points in rad,
+      ``max_delta`` = ``max_delta_deg`` in rad, in every action mode).
+    - ``reward_failure = -failure_weight`` on the step that ends the episode by a failure.
+
+    ## Starting State
+
+    The paper's parallel point-contact state (fingers parallel, touching the object at one
+    point, everything at rest; Sec 5.5.1), then a grasp phase inside ``reset``: the set-points
+    ``grasp_setpoint_deg`` (plus uniform noise of half-width ``reset_noise_deg``) are held for
+    ``grasp_duration`` seconds, so episodes start with the object held (d_n about 7 mm).
+    ``grasp_duration=0`` starts at the point-contact state itself (paper replay). The first
+    set-points of the episode are the grasp set-points. The post-grasp state is cached when
+    nothing is randomised. ``reset(seed=...)`` seeds ``np_random``, which draws (in order) the
+    randomised parameters (``rand_*``, relative half-widths of object width, mass, inertia,
+    Young's modulus, damping, PID gains; ``randomize=True`` applies a preset), the grasp
+    noise, the goal (uniform within ``goal_x_range_mm`` / ``goal_theta_range_deg``) and the
+    observation noise; a randomised draw whose grasp phase fails is redrawn (up to 10 times).
+    ``reset(options={"goal": g})`` sets the goal (SI units) instead.
+
+    ## Episode End
+
+    Termination (``terminated=True``, reason in ``info["termination_reason"]``):
+    ``grasp_lost`` (a d_n <= 0: the bilateral contact would pull), ``overcompressed`` (a
+    d_n >= ``overcompression_ratio`` * a, the fingertip model's validity limit, checked after
+    every control step), ``nonfinite_state`` (NaN/inf; the state is rolled back to the last
+    finite one so observations stay finite) or ``constraint_violation`` (|C^H| >
+    ``ch_limit``); with ``terminate_on_success=True`` also ``success``. ``step`` never raises
+    for physics trouble and never returns NaN. Truncation (``truncated=True``) comes from the
+    ``TimeLimit`` wrapper after ``max_episode_steps`` control steps.
+
+    ``info`` of every ``reset`` and ``step``: ``object_pose`` (x, y, theta; m, m, rad),
+    ``deformation`` (d_n1, d_n2, d_t1, d_t2; m), ``constraint_error`` (max |C^H| in m, max
+    |C^N| in m/s over the step; at reset: at the start state), ``grasped`` (both d_n > 0, state
+    valid), ``is_success``, ``setpoint`` (rad), ``physics_flags`` (kernel status bits), the
+    reward terms (0 at reset), ``goal`` (SI, goal tasks) and ``termination_reason``.
+
+    ## Arguments
+
+    Every argument is a ``gym.make(id, **kwargs)`` keyword. ``None`` for a task keyword means
+    the value in ``configs/tasks/<task>.yaml``; a task rejects keywords it does not use.
+
+    | Parameter | Type | Default | Description |
+    |---|---|---|---|
+    | `task` | str | `'none'` | `'none'`, `'reorient'`, `'translate'` or `'pose'` |
+    | `action_mode` | str | `'delta'` | `'delta'` (set-point change) or `'absolute'` |
+    | `normalize_action` | bool | `True` | False (absolute only): action = set-points in rad |
+    | `max_delta_deg` | float | `1.0` | largest set-point change per step (deg); ctrl-cost unit |
+    | `joint_range_deg` | tuple | `(-30.0, 30.0)` | set-point limits (deg) |
+    | `control_dt` | float | `0.02` | control period (s), a multiple of the 0.1 ms substep |
+    | `obs_mode` | str | `'proprio'` | `'proprio'` or `'proprio_tactile'` (adds d_n, d_t) |
+    | `history_len` | int | `1` | number of observation frames, newest first |
+    | `grasp_setpoint_deg` | tuple | `(6.0, 6.0)` | grasp set-points (deg), first set-points |
+    | `grasp_duration` | float | `0.5` | grasp phase in reset (s); 0 = point-contact start |
+    | `reset_noise_deg` | float | `0.0` | half-width of uniform noise on the grasp set-points |
+    | `hand` | str | `'paper_ch5'` | hand config name in `configs/hand/` or a YAML path |
+    | `hand_overrides` | dict | `None` | HandParams fields (SI) replacing config values |
+    | `overcompression_ratio` | float | `0.5` | terminate when d_n >= ratio * a |
+    | `ch_limit` | float | `0.001` | terminate when a holonomic residual exceeds this (m) |
+    | `randomize` | bool | `False` | preset for every `rand_*` / `obs_noise` left at None |
+    | `rand_width` | float | `None` | object width, relative half-width (preset 0.03) |
+    | `rand_mass` | float | `None` | object mass, relative half-width (preset 0.2) |
+    | `rand_inertia` | float | `None` | object inertia, relative half-width (preset 0.2) |
+    | `rand_stiffness` | float | `None` | Young's modulus E, relative half-width (preset 0.1) |
+    | `rand_damping` | float | `None` | c_n and c_t, relative half-width (preset 0.2) |
+    | `rand_gains` | float | `None` | Kp, Kd, Ki, relative half-width (preset 0.1) |
+    | `obs_noise` | float | `None` | observation noise std, scaled units (preset 0.01) |
+    | `goal_x_range_mm` | float | `None` | x* ~ U(-r, r) (mm) |
+    | `goal_theta_range_deg` | float | `None` | theta* ~ U(-r, r) (deg) |
+    | `x_tolerance_mm` | float | `None` | success tolerance on x (mm) |
+    | `theta_tolerance_deg` | float | `None` | success tolerance on theta (deg) |
+    | `x_scale_mm` | float | `None` | error scale of reward_goal for x (mm) |
+    | `theta_scale_deg` | float | `None` | error scale of reward_goal for theta (deg) |
+    | `goal_weight` | float | `None` | weight of reward_goal |
+    | `success_weight` | float | `None` | weight of reward_success |
+    | `ctrl_weight` | float | `None` | weight of reward_ctrl |
+    | `failure_weight` | float | `None` | weight of reward_failure |
+    | `terminate_on_success` | bool | `None` | end the episode on success |
+    | `render_mode` | str | `None` | None, `'rgb_array'` or `'human'` |
+    | `render_width` | int | `480` | frame width (px) |
+    | `render_height` | int | `480` | frame height (px) |
+
+    ## Version History
+
+    - v0: initial release (chapter-5 model, Table 5.1 parameters).
+    """
+
+    metadata = {"render_modes": list(RENDER_MODES), "render_fps": 50}
+
+    def __init__(
+        self,
+        task: str = "none",
+        action_mode: str = "delta",
+        normalize_action: bool = True,
+        max_delta_deg: float = 1.0,
+        joint_range_deg: tuple[float, float] = (-30.0, 30.0),
+        control_dt: float = 0.02,
+        obs_mode: str = "proprio",
+        history_len: int = 1,
+        grasp_setpoint_deg: tuple[float, float] = (6.0, 6.0),
+        grasp_duration: float = 0.5,
+        reset_noise_deg: float = 0.0,
+        hand: str = "paper_ch5",
+        hand_overrides: dict[str, Any] | None = None,
+        overcompression_ratio: float = 0.5,
+        ch_limit: float = 0.001,
+        randomize: bool = False,
+        rand_width: float | None = None,
+        rand_mass: float | None = None,
+        rand_inertia: float | None = None,
+        rand_stiffness: float | None = None,
+        rand_damping: float | None = None,
+        rand_gains: float | None = None,
+        obs_noise: float | None = None,
+        goal_x_range_mm: float | None = None,
+        goal_theta_range_deg: float | None = None,
+        x_tolerance_mm: float | None = None,
+        theta_tolerance_deg: float | None = None,
+        x_scale_mm: float | None = None,
+        theta_scale_deg: float | None = None,
+        goal_weight: float | None = None,
+        success_weight: float | None = None,
+        ctrl_weight: float | None = None,
+        failure_weight: float | None = None,
+        terminate_on_success: bool | None = None,
+        render_mode: str | None = None,
+        render_width: int = 480,
+        render_height: int = 480,
+    ):
+        kwargs = {k: v for k, v in locals().items() if k not in ("self", "__class__")}
+        cfg = build_config(**kwargs)
+        self.config = cfg
+        self.task = cfg.task
+        self.render_mode = render_mode
+        self.action_space = cfg.actions.space()
+        self.observation_space = cfg.layout.space()
+        #: Control period (s).
+        self.dt = cfg.dt
+        self.metadata = {**type(self).metadata, "render_fps": 1.0 / cfg.dt}
+        self.physics = HandPhysics(cfg.params, ch_limit=cfg.ch_limit)
+        self._params = cfg.params
+        self._prm = pack_params(cfg.params)
+        self._y = self.physics.get_state()
+        self._u = cfg.grasp_setpoint.copy()
+        self._goal = np.zeros(cfg.task.goal_dim)
+        self._goal_t: tuple[float, ...] = ()
+        self._obs = np.zeros(cfg.layout.size, dtype=np.float32)
+        self._noise = cfg.randomization.obs_noise
+        self._renderer = None
+        self._viewer = None
+
+    # ------------------------------------------------------------------------------ reset
+    def reset(
+        self, *, seed: int | None = None, options: dict[str, Any] | None = None
+    ) -> tuple[np.ndarray, dict[str, Any]]:
+        super().reset(seed=seed)
+        cfg = self.config
+        goal = options.get("goal") if options else None
+        start = start_episode(cfg, self.np_random, self._params, self._prm, goal)
+        if start.params is not self._params:
+            self._params, self._prm = start.params, start.prm
+            self.physics.set_params(start.params)
+        self.physics.reset(start.state)
+        self._y = start.state
+        self._u = start.setpoint
+        self._goal = start.goal
+        self._goal_t = tuple(float(g) for g in start.goal)
+        reset_observation(
+            self._obs,
+            cfg.layout,
+            self._y,
+            self._u,
+            self._prm,
+            self.task.goal_observation(start.goal),
+            self._noise,
+            self.np_random,
+        )
+        ce = start.constraint_error
+        zeros = (0.0,) * len(self.task.terms)
+        info = self._info(ce[0], ce[1], start.grasped, start.success, zeros, 0)
+        if self.render_mode == "human":
+            self.render()
+        return self._obs.copy(), info
+
+    # ------------------------------------------------------------------------------- step
+    def step(self, action: np.ndarray) -> tuple[np.ndarray, float, bool, bool, dict[str, Any]]:
+        cfg = self.config
+        u, ctrl = cfg.actions.setpoints(action, self._u)
+        status = self.physics.step(u, cfg.n_substeps, strict=False)
+        flags = status.flags
+        ch, cn = status.max_ch, status.max_cn
+        if flags & kernel.FATAL_FLAGS:
+            ch = ch if math.isfinite(ch) else math.inf
+            cn = cn if math.isfinite(cn) else math.inf
+            if flags & kernel.FLAG_NONFINITE:
+                # roll back to the last finite state: observations and info stay finite
+                self.physics.set_state(self._y)
+        y = self.physics.get_state()
+        self._y = y
+        self._u = u
+        yl = y.tolist()  # Python floats: the generic task code is fastest on scalars
+        failed, grasped, _, _ = failure_state(flags, yl, cfg.dn_limit)
+        terms, success = self.task.evaluate(yl, self._goal_t, ctrl, failed, grasped)
+        reward = float(sum(terms))
+        terminated = bool(failed or (success and self.task.terminate_on_success))
+        push_frame(self._obs, cfg.layout, y, u, self._prm, self._noise, self.np_random)
+        info = self._info(ch, cn, grasped, success, terms, flags)
+        if terminated:
+            info["termination_reason"] = (
+                termination_reason(flags, y, cfg.dn_limit) if failed else "success"
+            )
+        if self.render_mode == "human":
+            self.render()
+        return self._obs.copy(), reward, terminated, False, info
+
+    # ---------------------------------------------------------------------------- helpers
+    def _info(self, ch, cn, grasped, success, terms, flags) -> dict[str, Any]:
+        y = self._y
+        info = {
+            "object_pose": y[X_OBJ : TH_OBJ + 1].copy(),
+            "deformation": y[DN_1 : DT_2 + 1].copy(),
+            "constraint_error": np.array((ch, cn)),
+            "grasped": bool(grasped),
+            "is_success": bool(success),
+            "setpoint": self._u.copy(),
+            "physics_flags": int(flags),
+        }
+        if self._goal_t:
+            info["goal"] = self._goal.copy()
+        for name, value in zip(self.task.terms, terms, strict=True):
+            info[name] = float(value)
+        return info
+
+    def observation_from_state(self, state: np.ndarray, setpoint: np.ndarray) -> np.ndarray:
+        """The newest observation frame (float32, no noise) for a physics state.
+
+        Parameters
+        ----------
+        state : ndarray, shape (20,)
+            Physics state [q, p, z].
+        setpoint : ndarray, shape (2,)
+            Set-points (rad).
+        """
+        out = np.zeros(self.config.layout.frame_size, dtype=np.float32)
+        observe_row(
+            np.asarray(state, dtype=np.float64),
+            np.asarray(setpoint, dtype=np.float64),
+            self._prm,
+            self.config.layout.tactile,
+            out,
+        )
+        return out
+
+    @property
+    def goal(self) -> np.ndarray:
+        """Current goal (SI units: m for x, rad for theta), shape (goal_dim,)."""
+        return self._goal.copy()
+
+    # -------------------------------------------------------------------------- rendering
+    def render(self) -> np.ndarray | None:
+        if self.render_mode is None:
+            gym.logger.warn(
+                "render() called without render_mode; pass render_mode='rgb_array' or "
+                "'human' to gym.make"
+            )
+            return None
+        if self._renderer is None:
+            from softhand_env.envs.rendering import SceneRenderer
+
+            self._renderer = SceneRenderer(self.config.params, *self.config.render_size)
+        pose = self.task.goal_pose(self._y, self._goal)
+        frame = self._renderer.frame(self._y, self._u, self._params, pose)
+        if self.render_mode == "rgb_array":
+            return frame
+        if self._viewer is None:
+            from softhand_env.envs.rendering import HumanViewer
+
+            self._viewer = HumanViewer(*self.config.render_size, self.metadata["render_fps"])
+        self._viewer.show(frame)
+        return None
+
+    def close(self) -> None:
+        if self._viewer is not None:
+            self._viewer.close()
+            self._viewer = None
+
+    def __getstate__(self) -> dict[str, Any]:
+        state = self.__dict__.copy()
+        state["_viewer"] = None  # a window does not pickle; it reopens on the next render
+        return state

@@ -1,0 +1,316 @@
+"""Tasks: goal sampling, reward terms, success and termination (dm_control's Task role).
+
+A task never touches the integrator; the environment hands it read-outs after every control
+step. Every method is written with arithmetic operators only, so the same code evaluates one
+environment (Python floats) or a batch (arrays of shape ``(N,)``) in
+:class:`~softhand_env.envs.vector.SoftHandVectorEnv`.
+
+Tasks (variants are constructor arguments, not new classes):
+
+* :class:`NoTask` (``"none"``): no goal, no reward terms; for scripted replay and evaluation.
+* :class:`GoalTask` with ``targets=("theta",)`` (``"reorient"``), ``("x",)`` (``"translate"``)
+  or ``("x", "theta")`` (``"pose"``).
+
+Reward of a goal task (every term is copied to ``info``; reward = sum of the terms)::
+
+    reward_goal    =  goal_weight * exp(-e),   e = sum_k |p_k - g_k| / scale_k
+    reward_success =  success_weight * is_success
+    reward_ctrl    = -ctrl_weight * |u_t - u_{t-1}|^2 / max_delta^2
+    reward_failure = -failure_weight * failed
+
+``p_k`` is the object's x (m) or theta (rad), ``g_k`` its target, ``u`` the set-point pair (rad),
+``max_delta`` the action's set-point bound per step (rad), ``failed`` a physical termination.
+``is_success`` = every ``|p_k - g_k| <= tolerance_k`` while the object is grasped.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from softhand_env import kernel
+from softhand_env.envs.observation import ANGLE_SCALE, OBS_BOUND, POSITION_SCALE
+from softhand_env.envs.task_configs import TASK_TARGETS, load_task_config
+from softhand_env.model import DN_1, DN_2, TH_OBJ, X_OBJ
+
+#: Constructor keywords that configure a goal task (``None`` in the env signature = task config).
+TASK_KWARGS = (
+    "goal_x_range_mm",
+    "goal_theta_range_deg",
+    "x_tolerance_mm",
+    "theta_tolerance_deg",
+    "x_scale_mm",
+    "theta_scale_deg",
+    "goal_weight",
+    "success_weight",
+    "ctrl_weight",
+    "failure_weight",
+    "terminate_on_success",
+)
+
+#: Reward term names of goal tasks, in summation order.
+GOAL_TERMS = ("reward_goal", "reward_success", "reward_ctrl", "reward_failure")
+
+#: Termination reasons (``info["termination_reason"]``), highest priority first.
+REASONS = ("nonfinite_state", "constraint_violation", "overcompressed", "grasp_lost")
+_DIVERGED = kernel.FLAG_NONFINITE | kernel.FLAG_CONSTRAINT
+
+
+def failure_state(flags: Any, yt: np.ndarray, dn_limit: float) -> tuple[Any, Any, Any, Any]:
+    """Classify the state after a control step.
+
+    Parameters
+    ----------
+    flags : int or ndarray of int, shape (N,)
+        Kernel status flags of the step.
+    yt : sequence of 20 floats, or ndarray (20, N)
+        State after the step, coordinate axis first (``y.tolist()`` or ``Y.T``), so that
+        ``yt[i]`` is a scalar for one environment and a column for a batch.
+    dn_limit : float
+        Normal deformation (m) at or above which the fingertip counts as over-compressed
+        (default a/2, the fingertip model's validity limit).
+
+    Returns
+    -------
+    failed, grasped, diverged, overcompressed : bool or ndarray of bool
+        ``failed`` = diverged | overcompressed | lost (d_n <= 0); ``grasped`` = both d_n > 0
+        and the state valid.
+    """
+    dn1 = yt[DN_1]
+    dn2 = yt[DN_2]
+    diverged = (flags & _DIVERGED) != 0
+    over = ((flags & kernel.FLAG_OVERCOMPRESSED) != 0) | (dn1 >= dn_limit) | (dn2 >= dn_limit)
+    lost = ((flags & kernel.FLAG_LOST) != 0) | (dn1 <= 0.0) | (dn2 <= 0.0)
+    failed = diverged | over | lost
+    grasped = (dn1 > 0.0) & (dn2 > 0.0) & ((flags & _DIVERGED) == 0)
+    return failed, grasped, diverged, over
+
+
+def termination_reason(flags: int, y: np.ndarray, dn_limit: float) -> str:
+    """Name of the highest-priority failure of one environment (see :data:`REASONS`)."""
+    if flags & kernel.FLAG_NONFINITE:
+        return REASONS[0]
+    if flags & kernel.FLAG_CONSTRAINT:
+        return REASONS[1]
+    if flags & kernel.FLAG_OVERCOMPRESSED or max(y[DN_1], y[DN_2]) >= dn_limit:
+        return REASONS[2]
+    return REASONS[3]
+
+
+@dataclass(frozen=True)
+class Target:
+    """One controlled object coordinate of a goal task (SI units).
+
+    Attributes
+    ----------
+    name : str
+        ``"x"`` (object x, m) or ``"theta"`` (object angle, rad).
+    index : int
+        Index of the coordinate in the state.
+    goal_range : float
+        Targets are sampled uniformly from [-goal_range, goal_range].
+    tolerance : float
+        Success when |p - g| <= tolerance.
+    scale : float
+        Error scale of ``reward_goal``.
+    obs_scale : float
+        The target appears in the observation divided by this.
+    """
+
+    name: str
+    index: int
+    goal_range: float
+    tolerance: float
+    scale: float
+    obs_scale: float
+
+
+class Task:
+    """Base task: no goal, no reward (``"none"``, used by ``SoftHand-v0``)."""
+
+    name = "none"
+    terms: tuple[str, ...] = ()
+    targets: tuple[Target, ...] = ()
+    terminate_on_success = False
+
+    @property
+    def goal_dim(self) -> int:
+        """Number of goal coordinates."""
+        return len(self.targets)
+
+    def sample_goal(self, rng: np.random.Generator) -> np.ndarray:
+        """Draw a goal (SI units), shape (goal_dim,), from ``rng`` (the env's ``np_random``)."""
+        return np.zeros(0)
+
+    def goal_observation(self, goal: np.ndarray) -> np.ndarray:
+        """The goal scaled for the observation, shape (..., goal_dim)."""
+        return np.asarray(goal, dtype=np.float64)
+
+    def goal_pose(self, y: np.ndarray, goal: np.ndarray) -> tuple[float, float] | None:
+        """Object (x, theta) at the goal for drawing: targets from ``goal``, the rest from the
+        state ``y`` (20,); None without a goal."""
+        if not self.targets:
+            return None
+        pose = {"x": float(y[X_OBJ]), "theta": float(y[TH_OBJ])}
+        for target, g in zip(self.targets, goal, strict=True):
+            pose[target.name] = float(g)
+        return pose["x"], pose["theta"]
+
+    def evaluate(
+        self, yt: np.ndarray, goal: tuple[Any, ...], ctrl: Any, failed: Any, grasped: Any
+    ) -> tuple[tuple[Any, ...], Any]:
+        """Reward terms (ordered as :attr:`terms`) and success for state(s) ``yt``.
+
+        Parameters
+        ----------
+        yt : sequence of 20 floats, or ndarray (20, N)
+            State after the step, coordinate axis first (see :func:`failure_state`).
+        goal : tuple of float or of ndarray (N,)
+            Goal coordinates (SI), one entry per target.
+        ctrl : float or ndarray (N,)
+            |u_t - u_{t-1}|^2 / max_delta^2 (dimensionless).
+        failed, grasped : bool or ndarray of bool
+            From :func:`failure_state`.
+        """
+        return (), False
+
+
+NoTask = Task
+
+
+class GoalTask(Task):
+    """Bring the object's x and/or theta to a target sampled at reset (see module doc)."""
+
+    terms = GOAL_TERMS
+
+    def __init__(
+        self,
+        name: str,
+        targets: tuple[Target, ...],
+        goal_weight: float,
+        success_weight: float,
+        ctrl_weight: float,
+        failure_weight: float,
+        terminate_on_success: bool,
+    ):
+        if not targets:
+            raise ValueError("a goal task needs at least one target")
+        for key, value in (
+            ("goal_weight", goal_weight),
+            ("success_weight", success_weight),
+            ("ctrl_weight", ctrl_weight),
+            ("failure_weight", failure_weight),
+        ):
+            if not (isinstance(value, (int, float)) and math.isfinite(value) and value >= 0):
+                raise ValueError(f"{key} must be a finite number >= 0 (got {value!r})")
+        self.name = name
+        self.targets = tuple(targets)
+        self.goal_weight = float(goal_weight)
+        self.success_weight = float(success_weight)
+        self.ctrl_weight = float(ctrl_weight)
+        self.failure_weight = float(failure_weight)
+        self.terminate_on_success = bool(terminate_on_success)
+        self._ranges = np.array([t.goal_range for t in self.targets])
+        self._obs_scales = np.array([t.obs_scale for t in self.targets])
+
+    def sample_goal(self, rng: np.random.Generator) -> np.ndarray:
+        return rng.uniform(-self._ranges, self._ranges)
+
+    def goal_observation(self, goal: np.ndarray) -> np.ndarray:
+        scaled = np.asarray(goal, dtype=np.float64) / self._obs_scales
+        return np.clip(scaled, -OBS_BOUND, OBS_BOUND)
+
+    def evaluate(self, yt, goal, ctrl, failed, grasped):
+        err = 0.0
+        success = grasped
+        for target, g in zip(self.targets, goal, strict=True):
+            d = abs(yt[target.index] - g)
+            err = err + d / target.scale
+            success = success & (d <= target.tolerance)
+        terms = (
+            self.goal_weight * np.exp(-err),
+            self.success_weight * success,
+            0.0 - self.ctrl_weight * ctrl,
+            0.0 - self.failure_weight * failed,
+        )
+        return terms, success
+
+    def __repr__(self) -> str:
+        return f"GoalTask({self.name!r}, targets={[t.name for t in self.targets]})"
+
+
+def make_task(task: str, **overrides: Any) -> Task:
+    """Build a task from its YAML defaults and keyword overrides (``None`` = config value).
+
+    Parameters
+    ----------
+    task : str
+        ``"none"``, ``"reorient"``, ``"translate"`` or ``"pose"``.
+    **overrides
+        Any of :data:`TASK_KWARGS`; keywords a task does not use must be ``None``.
+
+    Raises
+    ------
+    ValueError
+        Unknown task, unknown key in the config file, keyword the task does not use, or a value
+        out of range (the message names the keyword).
+    """
+    cfg = {k: v for k, v in load_task_config(task).items() if k != "max_episode_steps"}
+    unknown = set(cfg) - set(TASK_KWARGS)
+    if unknown:
+        raise ValueError(f"configs/tasks/{task}.yaml: unknown keys {sorted(unknown)}")
+    for key, value in overrides.items():
+        if key not in TASK_KWARGS:
+            raise TypeError(f"make_task() got an unexpected keyword {key!r}")
+        if value is None:
+            continue
+        if key not in cfg:
+            raise ValueError(f"task {task!r} does not use {key!r} (it takes {sorted(cfg)})")
+        cfg[key] = value
+    if task == "none":
+        return NoTask()
+
+    def positive(key: str) -> float:
+        value = cfg[key]
+        if isinstance(value, bool) or not isinstance(value, (int, float)):
+            raise ValueError(f"{key} must be a number (got {value!r})")
+        if not (math.isfinite(value) and value > 0):
+            raise ValueError(f"{key} must be finite and > 0 (got {value!r})")
+        return float(value)
+
+    targets = []
+    for name in TASK_TARGETS[task]:
+        if name == "x":
+            targets.append(
+                Target(
+                    "x",
+                    X_OBJ,
+                    positive("goal_x_range_mm") * 1e-3,
+                    positive("x_tolerance_mm") * 1e-3,
+                    positive("x_scale_mm") * 1e-3,
+                    POSITION_SCALE,
+                )
+            )
+        else:
+            targets.append(
+                Target(
+                    "theta",
+                    TH_OBJ,
+                    math.radians(positive("goal_theta_range_deg")),
+                    math.radians(positive("theta_tolerance_deg")),
+                    math.radians(positive("theta_scale_deg")),
+                    ANGLE_SCALE,
+                )
+            )
+    return GoalTask(
+        task,
+        tuple(targets),
+        goal_weight=cfg["goal_weight"],
+        success_weight=cfg["success_weight"],
+        ctrl_weight=cfg["ctrl_weight"],
+        failure_weight=cfg["failure_weight"],
+        terminate_on_success=bool(cfg["terminate_on_success"]),
+    )

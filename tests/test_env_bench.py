@@ -1,0 +1,13 @@
+"""Smoke test of the environment benchmark (tiny sizes; no timing is asserted)."""
+
+from __future__ import annotations
+
+from softhand_env import bench_env
+
+
+def test_bench_env_runs_and_reports_every_mode(capsys):
+    bench_env.main(["--sizes", "2", "--env-steps", "40", "--repeats", "1", "--async-max", "0"])
+    out = capsys.readouterr().out
+    for label in ("kernel", "single (gym.make)", "sync", "async", "vector_entry_point"):
+        assert label in out
+    assert "skipped" in out  # async above --async-max
