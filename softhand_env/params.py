@@ -44,6 +44,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import sys
 from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
@@ -92,20 +93,14 @@ class HandParams:
         for f in dataclasses.fields(self):
             value = getattr(self, f.name)
             if f.name == "cross_term":
-                if value not in CROSS_TERMS:
+                if not (isinstance(value, str) and value in CROSS_TERMS):
                     raise ValueError(f"cross_term must be one of {CROSS_TERMS} (got {value!r})")
                 continue
             if f.name == "M_deform" and value is None:
                 continue
-            if isinstance(value, bool) or not isinstance(value, (int, float, np.floating)):
-                raise ValueError(f"{f.name} must be a real number (got {value!r})")
-            low, high, closed_low = _RANGES[f.name]
-            ok = math.isfinite(value) and value <= high
-            ok = ok and (value >= low if closed_low else value > low)
-            if not ok:
-                bracket = "[" if closed_low else "("
+            if not _in_range(f.name, value):
                 raise ValueError(
-                    f"{f.name} must be in {bracket}{low:g}, {high:g}] (got {value!r})"
+                    f"{f.name} must be a real number in {range_text(f.name)} (got {value!r})"
                 )
         if self.W_obj / 2 + self.a > self.W_fi - self.d_fi + self.L * 0.5:
             raise ValueError(
@@ -124,7 +119,14 @@ class HandParams:
         return (-1.0, -1.0) if self.cross_term == "uniform" else (-1.0, 1.0)
 
     def replace(self, **changes: Any) -> HandParams:
-        """Return a validated copy with ``changes`` applied (field names, SI units)."""
+        """Return a validated copy with ``changes`` applied (field names, SI units).
+
+        Raises ``ValueError`` for an unknown field or a value out of range (naming the field).
+        """
+        unknown = sorted(set(changes) - {f.name for f in dataclasses.fields(self)})
+        if unknown:
+            fields = ", ".join(f.name for f in dataclasses.fields(self))
+            raise ValueError(f"unknown HandParams field(s) {unknown}; fields: {fields}")
         return dataclasses.replace(self, **changes)
 
     def to_yaml_dict(self) -> dict[str, Any]:
@@ -189,6 +191,34 @@ YAML_KEYS: dict[str, tuple[str, float | None]] = {
 _FIELD_TO_KEY = {field: key for key, (field, _) in YAML_KEYS.items()}
 
 
+def is_finite_real(value: Any) -> bool:
+    """True for a finite real number (int, float or their NumPy kinds; not a bool).
+
+    An int too large for a float (e.g. a 400-digit YAML integer) is not finite here, so it is
+    rejected with a ``ValueError`` instead of overflowing later.
+    """
+    if isinstance(value, (bool, np.bool_)):
+        return False
+    if isinstance(value, (int, np.integer)):
+        return abs(value) <= sys.float_info.max
+    return isinstance(value, (float, np.floating)) and math.isfinite(value)
+
+
+def _in_range(field: str, value: Any, scale: float = 1.0) -> bool:
+    """True if ``value * scale`` is a valid value of numeric field ``field`` (no overflow)."""
+    if not is_finite_real(value):
+        return False
+    low, high, closed_low = _RANGES[field]
+    low, high = low / scale, high / scale
+    return (value >= low if closed_low else value > low) and value <= high
+
+
+def range_text(field: str, scale: float = 1.0) -> str:
+    """Allowed range of numeric field ``field`` as text, in units of ``scale`` SI units."""
+    low, high, closed_low = _RANGES[field]
+    return f"{'[' if closed_low else '('}{low / scale:g}, {high / scale:g}]"
+
+
 def hand_params_from_dict(
     data: Mapping[str, Any], base: HandParams | None = None, source: str = "config"
 ) -> HandParams:
@@ -206,9 +236,12 @@ def hand_params_from_dict(
     Raises
     ------
     ValueError
-        Unknown key, non-numeric value or value out of range; the message names the key.
+        Not a mapping, unknown key, non-numeric value or value out of range; the message names
+        the key and its allowed range in the key's unit.
     """
     base = base if base is not None else HandParams()
+    if not isinstance(data, Mapping):
+        raise ValueError(f"{source}: expected a mapping of keys to values (got {data!r})")
     changes: dict[str, Any] = {}
     for key, value in data.items():
         if key not in YAML_KEYS:
@@ -216,22 +249,24 @@ def hand_params_from_dict(
                 f"{source}: unknown key {key!r}; allowed keys: {', '.join(sorted(YAML_KEYS))}"
             )
         field, scale = YAML_KEYS[key]
-        if scale is not None and value is not None:
-            if isinstance(value, bool) or not isinstance(value, (int, float)):
-                raise ValueError(f"{source}: {key} must be a number (got {value!r})")
-            value = float(value) * scale
-        changes[field] = value
+        if field == "cross_term" or (field == "M_deform" and value is None):
+            changes[field] = value
+            continue
+        unit = 1.0 if scale is None else scale
+        if not _in_range(field, value, unit):
+            raise ValueError(
+                f"{source}: {key} must be a number in {range_text(field, unit)} (got {value!r})"
+            )
+        changes[field] = float(value) * unit
     try:
         return base.replace(**changes)
     except ValueError as exc:
-        # re-word the field name as the YAML key the user wrote
+        # a cross-field check (or rounding at a range end): name the YAML key the user wrote
         msg = str(exc)
         field = msg.split(" ", 1)[0]
         key = _FIELD_TO_KEY.get(field)
-        if key is not None and key in data:
-            _, scale = YAML_KEYS[key]
-            msg = f"{key} (field {field}, SI value; YAML value x {scale:g}) " + msg.split(" ", 1)[1]
-        raise ValueError(f"{source}: {msg}") from None
+        prefix = f"{key}: " if key is not None and key in data and key != field else ""
+        raise ValueError(f"{source}: {prefix}{msg}") from None
 
 
 def load_hand_params(name_or_path: str | Path = "paper_ch5", **overrides: Any) -> HandParams:
@@ -244,18 +279,29 @@ def load_hand_params(name_or_path: str | Path = "paper_ch5", **overrides: Any) -
         spacing), or a path to a YAML file with unit-named keys.
     **overrides
         :class:`HandParams` field values in SI units applied after loading.
+
+    Raises
+    ------
+    ValueError
+        Config not found, not valid YAML, not a mapping, or an invalid key/value (see
+        :func:`hand_params_from_dict`); an unknown or out-of-range override (naming the field).
     """
     import yaml
 
+    if not isinstance(name_or_path, (str, Path)):
+        raise ValueError(
+            f"hand must be a built-in config name or a YAML path (got {name_or_path!r})"
+        )
     path = Path(name_or_path)
     if not path.suffix:
         path = CONFIG_DIR / "hand" / f"{name_or_path}.yaml"
     if not path.is_file():
         builtin = sorted(p.stem for p in (CONFIG_DIR / "hand").glob("*.yaml"))
         raise ValueError(f"hand config {str(name_or_path)!r} not found (built-in: {builtin})")
-    with path.open() as fh:
-        data = yaml.safe_load(fh) or {}
-    if not isinstance(data, dict):
-        raise ValueError(f"{path}: expected a mapping of keys to values")
+    try:
+        with path.open() as fh:
+            data = yaml.safe_load(fh) or {}
+    except (yaml.YAMLError, UnicodeDecodeError) as exc:
+        raise ValueError(f"{path}: not a valid YAML file ({exc})") from None
     params = hand_params_from_dict(data, source=str(path))
     return params.replace(**overrides) if overrides else params

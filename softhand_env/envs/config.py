@@ -20,7 +20,7 @@ from softhand_env.envs.actions import ActionMap
 from softhand_env.envs.observation import ObservationLayout
 from softhand_env.envs.randomization import PRESET, Randomization
 from softhand_env.envs.tasks import TASK_KWARGS, Task, make_task
-from softhand_env.params import HandParams, load_hand_params
+from softhand_env.params import HandParams, is_finite_real, load_hand_params
 
 #: Allowed ``render_mode`` values.
 RENDER_MODES = ("human", "rgb_array")
@@ -52,6 +52,9 @@ class EnvConfig:
         Over-compression limit on d_n (m).
     ch_limit : float
         Divergence limit on |C^H| (m).
+    base_limit : float
+        1 + ``base_tolerance``: a contact past its fingertip base fails when
+        :func:`~softhand_env.envs.tasks.base_ratio` exceeds this.
     render_mode : str or None
     render_size : (int, int)
         Frame (width, height) in pixels.
@@ -69,6 +72,7 @@ class EnvConfig:
     randomization: Randomization
     dn_limit: float
     ch_limit: float
+    base_limit: float
     render_mode: str | None
     render_size: tuple[int, int]
 
@@ -84,11 +88,23 @@ def _pair(name: str, value: Sequence[float]) -> tuple[float, float]:
 
 
 def _number(name: str, value: Any, low: float, high: float = math.inf) -> float:
-    if isinstance(value, bool) or not isinstance(value, (int, float, np.floating, np.integer)):
-        raise ValueError(f"{name} must be a number (got {value!r})")
-    if not (math.isfinite(value) and low <= value <= high):
-        raise ValueError(f"{name} must be in [{low:g}, {high:g}] (got {value!r})")
+    if not (is_finite_real(value) and low <= value <= high):
+        raise ValueError(f"{name} must be a number in [{low:g}, {high:g}] (got {value!r})")
     return float(value)
+
+
+def _tolerance(name: str, value: Any) -> float:
+    """A number >= 0; ``math.inf`` allowed (switches the check off)."""
+    infinite = isinstance(value, (float, np.floating)) and value == math.inf
+    if not (infinite or is_finite_real(value)) or not value >= 0:
+        raise ValueError(f"{name} must be a number in [0, inf] (got {value!r})")
+    return float(value)
+
+
+def _flag(name: str, value: Any) -> bool:
+    if not isinstance(value, (bool, np.bool_)):
+        raise ValueError(f"{name} must be True or False (got {value!r})")
+    return bool(value)
 
 
 def build_config(
@@ -108,6 +124,7 @@ def build_config(
     hand_overrides: Mapping[str, Any] | None,
     overcompression_ratio: float,
     ch_limit: float,
+    base_tolerance: float,
     randomize: bool,
     render_mode: str | None,
     render_width: int,
@@ -123,7 +140,18 @@ def build_config(
     rand_kw = {k: rest.pop(k) for k in PRESET if k in rest}
     if rest:
         raise TypeError(f"unexpected keyword arguments {sorted(rest)}")
+    if hand_overrides is not None and not isinstance(hand_overrides, Mapping):
+        raise ValueError(
+            f"hand_overrides must be None or a dict of HandParams fields (got {hand_overrides!r})"
+        )
     params = load_hand_params(hand, **dict(hand_overrides or {}))
+    joint_range = _pair("joint_range_deg", joint_range_deg)
+    grasp = _pair("grasp_setpoint_deg", grasp_setpoint_deg)
+    if not all(joint_range[0] <= g <= joint_range[1] for g in grasp):
+        raise ValueError(
+            f"grasp_setpoint_deg must lie within joint_range_deg {list(joint_range)} "
+            f"(got {grasp_setpoint_deg!r})"
+        )
     control_dt = _number("control_dt", control_dt, 0.0)
     n_substeps = round(control_dt / params.dt)
     if n_substeps < 1 or abs(n_substeps * params.dt - control_dt) > 1e-9:
@@ -147,16 +175,22 @@ def build_config(
     return EnvConfig(
         task=task_obj,
         params=params,
-        actions=ActionMap(action_mode, normalize_action, max_delta_deg, joint_range_deg),
+        actions=ActionMap(
+            action_mode,
+            _flag("normalize_action", normalize_action),
+            _number("max_delta_deg", max_delta_deg, 0.0),
+            joint_range,
+        ),
         layout=ObservationLayout(obs_mode, history_len, tuple(t.name for t in task_obj.targets)),
         n_substeps=n_substeps,
         dt=n_substeps * params.dt,
-        grasp_setpoint=np.radians(_pair("grasp_setpoint_deg", grasp_setpoint_deg)),
+        grasp_setpoint=np.radians(grasp),
         n_grasp=n_grasp,
         reset_noise=math.radians(_number("reset_noise_deg", reset_noise_deg, 0.0, 10.0)),
-        randomization=Randomization.resolve(bool(randomize), **rand_kw),
+        randomization=Randomization.resolve(_flag("randomize", randomize), **rand_kw),
         dn_limit=_number("overcompression_ratio", overcompression_ratio, 1e-3, 1.0) * params.a,
         ch_limit=_number("ch_limit", ch_limit, 1e-12),
+        base_limit=1.0 + _tolerance("base_tolerance", base_tolerance),
         render_mode=render_mode,
         render_size=(int(render_width), int(render_height)),
     )

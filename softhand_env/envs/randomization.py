@@ -17,7 +17,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from softhand_env.params import HandParams
+from softhand_env.params import HandParams, is_finite_real
 
 #: rand_* keyword -> HandParams fields it scales (together, by one factor).
 FIELDS: dict[str, tuple[str, ...]] = {
@@ -62,11 +62,9 @@ class Randomization:
                 raise TypeError(f"unknown randomisation keyword {key!r}")
             if value is None:
                 value = PRESET[key] if randomize else 0.0
-            if isinstance(value, bool) or not isinstance(value, (int, float)):
-                raise ValueError(f"{key} must be a number (got {value!r})")
             high = 1.0 if key != "obs_noise" else math.inf
-            if not (math.isfinite(value) and 0.0 <= value < high):
-                raise ValueError(f"{key} must be in [0, {high}) (got {value!r})")
+            if not (is_finite_real(value) and 0.0 <= value < high):
+                raise ValueError(f"{key} must be a number in [0, {high}) (got {value!r})")
             out[key] = float(value)
         return cls(**out)
 

@@ -12,7 +12,7 @@ from softhand_env import kernel
 from softhand_env.envs.config import RENDER_MODES, build_config
 from softhand_env.envs.observation import observe_row, push_frame, reset_observation
 from softhand_env.envs.start import start_episode
-from softhand_env.envs.tasks import failure_state, termination_reason
+from softhand_env.envs.tasks import failure_state, step_flags, termination_reason
 from softhand_env.model import DN_1, DT_2, TH_OBJ, X_OBJ, pack_params
 from softhand_env.physics import HandPhysics
 
@@ -113,17 +113,37 @@ class SoftHandEnv(gym.Env):
     Young's modulus, damping, PID gains; ``randomize=True`` applies a preset), the grasp
     noise, the goal (uniform within ``goal_x_range_mm`` / ``goal_theta_range_deg``) and the
     observation noise; a randomised draw whose grasp phase fails is redrawn (up to 10 times).
-    ``reset(options={"goal": g})`` sets the goal (SI units) instead.
+    ``reset`` raises :class:`~softhand_env.physics.PhysicsError` if the grasp phase itself ends
+    in one of the failures of Episode End (e.g. ``grasp_setpoint_deg=(12, 12)`` over-compresses
+    the fingertips; every draw failing with randomisation): that configuration cannot start
+    an episode. ``reset(options={"goal": g})`` sets the goal (SI units) instead.
 
     ## Episode End
 
-    Termination (``terminated=True``, reason in ``info["termination_reason"]``):
-    ``grasp_lost`` (a d_n <= 0: the bilateral contact would pull), ``overcompressed`` (a
-    d_n >= ``overcompression_ratio`` * a, the fingertip model's validity limit, checked after
-    every control step), ``nonfinite_state`` (NaN/inf; the state is rolled back to the last
-    finite one so observations stay finite) or ``constraint_violation`` (|C^H| >
-    ``ch_limit``); with ``terminate_on_success=True`` also ``success``. ``step`` never raises
-    for physics trouble and never returns NaN. Truncation (``truncated=True``) comes from the
+    Termination (``terminated=True``, reason in ``info["termination_reason"]``) when the state
+    leaves the model's validity; if several apply, the first of this list is reported:
+
+    - ``nonfinite_state``: NaN/inf in the state; it is rolled back to the last finite one, so
+      observations and info stay finite.
+    - ``constraint_violation``: max |C^H| over the step > ``ch_limit``.
+    - ``overcompressed``: a d_n >= ``overcompression_ratio`` * a (the fingertip model's
+      validity limit a/2 by default).
+    - ``grasp_lost``: a d_n <= 0 (the bilateral contact would pull).
+    - ``contact_past_base``: a contact circle passed its fingertip base, beyond which the
+      closed-form contact model over-predicts: tan theta_p > (1 + ``base_tolerance``)
+      (a - d_n)/a_c (a_c the contact radius). The kernel flags any overshoot (``FLAG_BASE``
+      in ``physics_flags``); the default tolerance 0.05 keeps the model error within
+      about 2 % in force (1 % in energy). Never reached by the paper's chapter-5 motions
+      (closest: 0.92 of the way) and rare under uniform random delta-mode actions (0.5 % of
+      the episode ends, one in 20,000 steps); the chapter-4 handling process at grasp
+      angles >= 6 deg goes past it (overshoot 4 % at 6 deg, 20 % at 7.2 deg): replay that
+      with ``base_tolerance=math.inf``.
+
+    Every control step is classified (the residual over all its substeps, the rest at its end;
+    the RK4 substeps stop at once on NaN or d_n outside [0, a)). With
+    ``terminate_on_success=True``, ``success`` also terminates. ``step`` never raises for
+    physics trouble and never returns NaN; ``reset`` starts afresh from the grasp phase,
+    whatever the previous episode did. Truncation (``truncated=True``) comes from the
     ``TimeLimit`` wrapper after ``max_episode_steps`` control steps.
 
     ``info`` of every ``reset`` and ``step``: ``object_pose`` (x, y, theta; m, m, rad),
@@ -154,6 +174,7 @@ class SoftHandEnv(gym.Env):
     | `hand_overrides` | dict | `None` | HandParams fields (SI) replacing config values |
     | `overcompression_ratio` | float | `0.5` | terminate when d_n >= ratio * a |
     | `ch_limit` | float | `0.001` | terminate when a holonomic residual exceeds this (m) |
+    | `base_tolerance` | float | `0.05` | allowed overshoot of tan theta_p past the base (inf: off)|
     | `randomize` | bool | `False` | preset for every `rand_*` / `obs_noise` left at None |
     | `rand_width` | float | `None` | object width, relative half-width (preset 0.03) |
     | `rand_mass` | float | `None` | object mass, relative half-width (preset 0.2) |
@@ -201,6 +222,7 @@ class SoftHandEnv(gym.Env):
         hand_overrides: dict[str, Any] | None = None,
         overcompression_ratio: float = 0.5,
         ch_limit: float = 0.001,
+        base_tolerance: float = 0.05,
         randomize: bool = False,
         rand_width: float | None = None,
         rand_mass: float | None = None,
@@ -284,8 +306,8 @@ class SoftHandEnv(gym.Env):
         cfg = self.config
         u, ctrl = cfg.actions.setpoints(action, self._u)
         status = self.physics.step(u, cfg.n_substeps, strict=False)
-        flags = status.flags
         ch, cn = status.max_ch, status.max_cn
+        flags = int(step_flags(status.flags, ch, cfg.ch_limit))
         if flags & kernel.FATAL_FLAGS:
             ch = ch if math.isfinite(ch) else math.inf
             cn = cn if math.isfinite(cn) else math.inf
@@ -296,7 +318,9 @@ class SoftHandEnv(gym.Env):
         self._y = y
         self._u = u
         yl = y.tolist()  # Python floats: the generic task code is fastest on scalars
-        failed, grasped, _, _ = failure_state(flags, yl, cfg.dn_limit)
+        failed, grasped, _, _ = failure_state(
+            flags, yl, cfg.dn_limit, cfg.params.a, cfg.base_limit
+        )
         terms, success = self.task.evaluate(yl, self._goal_t, ctrl, failed, grasped)
         reward = float(sum(terms))
         terminated = bool(failed or (success and self.task.terminate_on_success))

@@ -18,7 +18,7 @@ import numpy as np
 
 from softhand_env import kernel
 from softhand_env.envs.config import EnvConfig
-from softhand_env.envs.tasks import failure_state
+from softhand_env.envs.tasks import base_ratio, failure_state
 from softhand_env.model import DN_1, DN_2, constraint_residuals, initial_state, pack_params
 from softhand_env.params import HandParams
 from softhand_env.physics import PhysicsError, describe_flags
@@ -37,6 +37,7 @@ def grasp_state(
     ch_limit: float,
     dn_limit: float,
     use_cache: bool = True,
+    base_limit: float = 1.0,
 ) -> tuple[np.ndarray, float, float]:
     """State after the grasp phase.
 
@@ -56,6 +57,9 @@ def grasp_state(
         Over-compression limit on d_n (m) the grasp must stay below.
     use_cache : bool
         Look up / store the result (off for randomised parameters, which rarely repeat).
+    base_limit : float
+        Contact past a fingertip base fails beyond this
+        :func:`~softhand_env.envs.tasks.base_ratio` (as in the environments).
 
     Returns
     -------
@@ -67,11 +71,13 @@ def grasp_state(
     Raises
     ------
     PhysicsError
-        The grasp phase left the model (lost grasp, over-compression, divergence): the
-        configuration (parameters, grasp set-points) cannot start an episode.
+        The grasp phase left the model (lost grasp, over-compression, divergence, contact
+        past the fingertip base): the configuration (parameters, grasp set-points) cannot
+        start an episode.
     """
     u0, u1 = float(setpoint[0]), float(setpoint[1])
-    key = (prm.tobytes(), u0, u1, int(n_substeps), float(ch_limit), float(dn_limit))
+    limits = (float(ch_limit), float(dn_limit), float(base_limit))
+    key = (prm.tobytes(), u0, u1, int(n_substeps), *limits)
     hit = _CACHE.get(key) if use_cache else None
     if hit is None:
         y = initial_state(params)
@@ -82,7 +88,9 @@ def grasp_state(
             flags, _ = kernel.advance(y, u, prm, int(n_substeps), ch_limit, diag)
             if max(y[DN_1], y[DN_2]) >= dn_limit:
                 flags |= kernel.FLAG_OVERCOMPRESSED
-            if flags & kernel.FATAL_FLAGS:
+            if flags & kernel.FLAG_BASE and base_ratio(y, params.a) <= base_limit:
+                flags &= ~kernel.FLAG_BASE  # within the tolerance: not a failure
+            if flags & (kernel.FATAL_FLAGS | kernel.FLAG_BASE):  # the env's failures
                 raise PhysicsError(
                     "the grasp phase at set-points "
                     f"{np.degrees(u).round(3).tolist()} deg failed: "
@@ -164,7 +172,8 @@ def start_episode(
             u0 += rng.uniform(-cfg.reset_noise, cfg.reset_noise, size=2)
         try:
             y, _, _ = grasp_state(
-                params, prm, u0, cfg.n_grasp, cfg.ch_limit, cfg.dn_limit, use_cache=fixed
+                params, prm, u0, cfg.n_grasp, cfg.ch_limit, cfg.dn_limit, use_cache=fixed,
+                base_limit=cfg.base_limit,
             )
             break
         except PhysicsError:

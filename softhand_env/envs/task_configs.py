@@ -24,7 +24,7 @@ def load_task_config(task: str) -> dict[str, Any]:
     """The YAML defaults of ``task`` as a dict (``ValueError`` for an unknown task)."""
     import yaml
 
-    if task not in TASK_TARGETS:
+    if not isinstance(task, str) or task not in TASK_TARGETS:
         raise ValueError(f"unknown task {task!r}; choose one of {sorted(TASK_TARGETS)}")
     path = TASK_CONFIG_DIR / f"{task}.yaml"
     with path.open() as fh:

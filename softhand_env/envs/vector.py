@@ -29,7 +29,7 @@ from softhand_env.envs.observation import add_frame_noise, observe_batch, reset_
 from softhand_env.envs.softhand import SoftHandEnv
 from softhand_env.envs.start import start_episode
 from softhand_env.envs.task_configs import load_task_config
-from softhand_env.envs.tasks import failure_state, termination_reason
+from softhand_env.envs.tasks import failure_state, step_flags, termination_reason
 from softhand_env.model import DN_1, DT_2, NY, TH_OBJ, X_OBJ, pack_params
 from softhand_env.physics import warn_if_unstable
 
@@ -204,7 +204,8 @@ class SoftHandVectorEnv(VectorEnv):
         kernel.advance_batch(
             self._Y, self._U, self._PRM, cfg.n_substeps, cfg.ch_limit, self._diag, flags
         )
-        flags[resetting] = 0
+        flags[:] = step_flags(flags, self._diag[:, 0], cfg.ch_limit)
+        flags[resetting] = 0  # (their DIAG rows are stale: the kernel skipped them)
         ce = self._ce
         ce[:] = self._diag
         if (flags & kernel.FATAL_FLAGS).any():
@@ -212,7 +213,9 @@ class SoftHandVectorEnv(VectorEnv):
             rollback = (flags & kernel.FLAG_NONFINITE) != 0
             self._Y[rollback] = Y_prev[rollback]  # last finite state: obs and info stay finite
         Yt = self._Y.T
-        failed, grasped, _, _ = failure_state(flags, Yt, cfg.dn_limit)
+        failed, grasped, _, _ = failure_state(
+            flags, Yt, cfg.dn_limit, cfg.params.a, cfg.base_limit
+        )
         goal_cols = tuple(self._goal.T)
         terms, success = self.task.evaluate(Yt, goal_cols, ctrl, failed, grasped)
         self._terms[:] = np.array(terms).reshape(len(self.task.terms), n)
