@@ -1,0 +1,255 @@
+"""Environment signatures: refuse to run a trained model on an environment it does not fit.
+
+A policy trained on one observation layout silently does the wrong thing on another (a
+``history_len=2`` model fed single frames, a ``proprio`` model fed tactile entries, a delta
+policy driving absolute set-points). :func:`env_signature` describes what a model depends on;
+the training CLI saves it next to the model (:func:`save_env_signature`, or as the model's
+``env_signature`` attribute, which Stable-Baselines3 stores in its zip) and the evaluator checks
+it with :func:`check_model_compatibility` before the first step.
+
+Signature fields (JSON-friendly; :data:`SIGNATURE_FIELDS`):
+
+=====================  ====================================================================
+field                  meaning
+=====================  ====================================================================
+``env_id``             registered id (``SoftHandReorient-v0`` ...)
+``version``            ``softhand_env.__version__``
+``task``               ``none`` / ``reorient`` / ``translate`` / ``pose``
+``obs_mode``           ``proprio`` or ``proprio_tactile``
+``history_len``        observation frames
+``observation_shape``  shape of one environment's observation, e.g. ``[9]``
+``action_mode``        ``delta`` or ``absolute``
+``normalize_action``   action in [-1, 1] (True) or set-points in rad (False)
+``action_shape``       ``[2]``
+``max_delta_deg``      set-point change of a full delta action (deg)
+``joint_range_deg``    set-point range ``[low, high]`` (deg)
+``control_dt``         control period (s)
+=====================  ====================================================================
+
+Hand parameters are *not* part of the signature: evaluating a policy on another hand (or
+under randomisation) is a legitimate experiment, not a mismatch.
+
+Example::
+
+    sig = env_signature(env)                       # at training time
+    save_env_signature(sig, signature_path("runs/ppo/model.zip"))
+    ...
+    check_model_compatibility("runs/ppo/model.env.json", eval_env)   # ValueError on mismatch
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+import warnings
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+#: Fields of :func:`env_signature`, in order.
+SIGNATURE_FIELDS = (
+    "env_id",
+    "version",
+    "task",
+    "obs_mode",
+    "history_len",
+    "observation_shape",
+    "action_mode",
+    "normalize_action",
+    "action_shape",
+    "max_delta_deg",
+    "joint_range_deg",
+    "control_dt",
+)
+
+#: Relative tolerance for float fields (they round-trip through degrees/radians and JSON).
+FLOAT_RTOL = 1e-9
+
+
+def _config_and_id(env: Any) -> tuple[Any, str | None]:
+    """The :class:`~softhand_env.envs.config.EnvConfig` of ``env`` and its spec id (or None).
+
+    Accepts a (wrapped) :class:`~softhand_env.envs.SoftHandEnv`, the native
+    :class:`~softhand_env.envs.SoftHandVectorEnv`, Gymnasium's Sync/Async vector envs and
+    Stable-Baselines3 VecEnvs (through their ``get_attr``).
+    """
+    from softhand_env.envs.config import EnvConfig
+
+    base = getattr(env, "unwrapped", env)
+    cfg = getattr(base, "config", None)
+    spec = getattr(env, "spec", None) or getattr(base, "spec", None)
+    if not isinstance(cfg, EnvConfig) and hasattr(env, "get_attr"):
+        try:
+            cfg = env.get_attr("config")[0]
+            if spec is None:
+                spec = env.get_attr("spec")[0]
+        except (AttributeError, IndexError):
+            cfg = None
+    if not isinstance(cfg, EnvConfig):
+        raise ValueError(f"not a softhand-env environment: {env!r}")
+    return cfg, (spec.id if spec is not None else None)
+
+
+def env_signature(env: Any) -> dict[str, Any]:
+    """What a model trained on ``env`` depends on (see the module doc), as a JSON-able dict.
+
+    Parameters
+    ----------
+    env
+        A softhand environment: ``gym.make(...)`` (any wrappers), the native vector env,
+        a Gymnasium vector env or an SB3 VecEnv of softhand environments.
+    """
+    import softhand_env
+    from softhand_env.envs import ENV_IDS
+
+    cfg, env_id = _config_and_id(env)
+    if env_id is None:  # constructed directly: the id registered for the task
+        env_id = next(i for i, t in ENV_IDS.items() if t == cfg.task.name)
+    actions = cfg.actions
+    return {
+        "env_id": env_id,
+        "version": softhand_env.__version__,
+        "task": cfg.task.name,
+        "obs_mode": "proprio_tactile" if cfg.layout.tactile else "proprio",
+        "history_len": cfg.layout.history_len,
+        "observation_shape": [cfg.layout.size],
+        "action_mode": actions.mode,
+        "normalize_action": actions.normalize,
+        "action_shape": [2],
+        "max_delta_deg": math.degrees(actions.max_delta),
+        "joint_range_deg": [math.degrees(actions.low), math.degrees(actions.high)],
+        "control_dt": cfg.dt,
+    }
+
+
+def signature_path(model_path: str | os.PathLike) -> Path:
+    """Conventional signature file next to a model: ``model.zip`` -> ``model.env.json``."""
+    path = Path(model_path)
+    return path.with_name(path.name.removesuffix(".zip") + ".env.json")
+
+
+def save_env_signature(signature_or_env: Any, path: str | os.PathLike) -> Path:
+    """Write a signature (or the signature of an env) to ``path`` as JSON; returns the path."""
+    if isinstance(signature_or_env, dict):
+        sig = signature_or_env
+    else:
+        sig = env_signature(signature_or_env)
+    path = Path(path)
+    path.write_text(json.dumps(sig, indent=2, sort_keys=False) + "\n")
+    return path
+
+
+def load_env_signature(path: str | os.PathLike) -> dict[str, Any]:
+    """Read a signature written by :func:`save_env_signature` (``ValueError`` if unreadable)."""
+    path = Path(path)
+    try:
+        data = json.loads(path.read_text())
+    except (OSError, json.JSONDecodeError) as exc:
+        raise ValueError(f"cannot read env signature {str(path)!r}: {exc}") from None
+    if not isinstance(data, dict):
+        raise ValueError(f"{path}: an env signature must be a JSON object")
+    return data
+
+
+def _same(a: Any, b: Any) -> bool:
+    """Equality with JSON normalisation (tuples = lists, NumPy scalars = Python numbers) and a
+    relative tolerance :data:`FLOAT_RTOL` for numbers; a bool only equals a bool."""
+    if isinstance(a, (list, tuple)) and isinstance(b, (list, tuple)):
+        return len(a) == len(b) and all(_same(x, y) for x, y in zip(a, b, strict=True))
+    a_bool, b_bool = isinstance(a, (bool, np.bool_)), isinstance(b, (bool, np.bool_))
+    if a_bool or b_bool:
+        return a_bool and b_bool and bool(a) == bool(b)
+    numbers = (int, float, np.integer, np.floating)
+    if isinstance(a, numbers) and isinstance(b, numbers):
+        return math.isclose(float(a), float(b), rel_tol=FLOAT_RTOL, abs_tol=0.0)
+    return a == b
+
+
+def _differences(saved: dict[str, Any], current: dict[str, Any], ignore) -> list[str]:
+    out = []
+    for key in list(current) + [k for k in saved if k not in current]:
+        if key in ignore:
+            continue
+        if key not in saved:
+            out.append(f"{key} (missing from the model's signature; env {current[key]!r})")
+        elif key not in current:
+            out.append(f"{key} (model {saved[key]!r}; unknown to this version of the env)")
+        elif not _same(saved[key], current[key]):
+            out.append(f"{key} (model {saved[key]!r}, env {current[key]!r})")
+    return out
+
+
+def check_model_compatibility(
+    model_or_metadata: Any, env: Any, ignore: tuple[str, ...] = ()
+) -> dict[str, Any]:
+    """Raise ``ValueError`` if a trained model does not fit ``env``; return the env signature.
+
+    Parameters
+    ----------
+    model_or_metadata
+        One of: a signature dict (:func:`env_signature`); a path to a signature JSON file
+        (:func:`save_env_signature`); or a model object (e.g. a Stable-Baselines3 algorithm)
+        with an ``env_signature`` dict attribute and/or ``observation_space`` /
+        ``action_space``. Spaces present on the model are compared too (field names
+        ``observation_space`` / ``action_space``); a model without a signature only gets the
+        space check and a ``UserWarning``.
+    env
+        The environment the model is about to run on (anything :func:`env_signature` takes).
+    ignore : tuple of str
+        Signature fields not to compare (e.g. ``("version",)`` to run an old model on purpose).
+
+    Raises
+    ------
+    ValueError
+        Naming every differing field with both values, e.g.
+        ``obs_mode (model 'proprio', env 'proprio_tactile')``.
+    """
+    current = env_signature(env)
+    problems: list[str] = []
+    saved: dict[str, Any] | None = None
+    if isinstance(model_or_metadata, dict):
+        saved = model_or_metadata
+    elif isinstance(model_or_metadata, (str, os.PathLike)):
+        saved = load_env_signature(model_or_metadata)
+    else:
+        saved = getattr(model_or_metadata, "env_signature", None)
+        if saved is not None and not isinstance(saved, dict):
+            raise ValueError(f"model.env_signature must be a dict (got {type(saved).__name__})")
+        for name, key in (("observation_space", "observation_shape"),
+                          ("action_space", "action_shape")):
+            space = getattr(model_or_metadata, name, None)
+            if space is not None and name not in ignore:
+                shape = list(getattr(space, "shape", None) or ())
+                if shape != current[key]:
+                    problems.append(f"{name} (model shape {shape}, env shape {current[key]})")
+        if saved is None:
+            if not hasattr(model_or_metadata, "observation_space"):
+                raise ValueError(
+                    "model_or_metadata must be a signature dict, a signature file or a model "
+                    f"with env_signature / observation_space (got {model_or_metadata!r})"
+                )
+            warnings.warn(
+                "the model carries no env signature: only its spaces were checked",
+                UserWarning,
+                stacklevel=2,
+            )
+    if saved is not None:
+        problems += _differences(saved, current, set(ignore))
+    if problems:
+        raise ValueError(
+            "trained model does not fit this environment; differing fields: "
+            + "; ".join(problems)
+        )
+    return current
+
+
+__all__ = [
+    "SIGNATURE_FIELDS",
+    "check_model_compatibility",
+    "env_signature",
+    "load_env_signature",
+    "save_env_signature",
+    "signature_path",
+]
