@@ -1,0 +1,290 @@
+"""Evaluate a scripted policy or a trained model on a fixed, seeded goal set (RL Zoo's ``enjoy``).
+
+::
+
+    python -m agents.evaluate --model agents/models/SoftHandReorient-v0
+    python -m agents.evaluate --policy model-based --env SoftHandTranslate-v0
+    python -m agents.evaluate --policy paper            # SoftHand-v0, the chapter-5 motions
+    python -m agents.evaluate --policy handling --grasp-deg 4.8 --n-episodes 1
+
+Episode k of the goal set starts with ``reset(seed=SEED + k)`` (default ``--seed 10000
+--n-episodes 100``: the test goals; training validates on seed 5000). Success is issue 6's:
+|x - x*| < 1 mm and/or |theta - theta*| < 1 deg (the task's targets) at the END of the
+episode (``info["is_success"]`` of the last step, with ``x_tolerance_mm=1.0,
+theta_tolerance_deg=1.0`` set on the env). A model is played deterministically with the
+``gym.make`` keywords of its run (``config.yml``) and its frozen VecNormalize statistics; a
+scripted policy with the keywords it declares (``env_kwargs``, ``episode_steps``).
+
+Prints a table (success rate, final |x| and |theta| errors, return, episode length) and writes
+to ``--out`` (default ``logs/eval/<env>_<policy>``): ``results.yml`` (summary and every
+episode), ``trajectories.png`` (object x, theta and set-points over time) and ``episode.gif``
+(the ``--gif-episode`` episode rendered from ``render_mode="rgb_array"`` frames).
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import yaml
+
+from agents.common import (
+    ERROR_KEYS,
+    ModelPolicy,
+    UserError,
+    final_errors,
+    goal_seeds,
+    make_env,
+    run_cli,
+    success_kwargs,
+    summarize,
+    task_targets,
+)
+
+SCRIPTED = ("paper", "handling", "model-based")
+
+
+def parse_args(argv: Sequence[str] | None = None) -> argparse.Namespace:
+    """Command-line arguments (see ``python -m agents.evaluate --help``)."""
+    p = argparse.ArgumentParser(
+        prog="python -m agents.evaluate", description=__doc__.split("\n\n")[0]
+    )
+    who = p.add_mutually_exclusive_group(required=True)
+    who.add_argument("--model", help="saved model: directory with model.zip, or a .zip")
+    who.add_argument("--policy", choices=SCRIPTED, help="scripted policy (agents.scripted)")
+    p.add_argument("--env", default=None,
+                   help="env id (model: taken from its config; paper/handling: SoftHand-v0)")
+    p.add_argument("--grasp-deg", type=float, default=6.0, help="handling: grasp angle (deg)")
+    p.add_argument("--n-episodes", type=int, default=100)
+    p.add_argument("--seed", type=int, default=10000, help="episode k: reset(seed=SEED + k)")
+    p.add_argument("--stochastic", action="store_true", help="sample model actions")
+    p.add_argument("--out", default=None, help="output directory")
+    p.add_argument("--no-plots", action="store_true", help="skip the PNG and the GIF")
+    p.add_argument("--gif-episode", type=int, default=0, help="episode index to animate")
+    p.add_argument("--gif-size", type=int, default=240, help="GIF frame size (px)")
+    p.add_argument("--device", default="cpu")
+    p.add_argument("--torch-threads", type=int, default=1)
+    return p.parse_args(argv)
+
+
+# ---------------------------------------------------------------------------------- setup
+def build(args: argparse.Namespace) -> tuple[Any, str, dict[str, Any], Any, str]:
+    """Policy, env id, ``gym.make`` keywords, env wrappers and a short name for the output."""
+    if args.model is not None:
+        policy = ModelPolicy(args.model, device=args.device)
+        if args.env is not None and args.env != policy.env_id:
+            raise UserError(f"the model was trained on {policy.env_id}, not {args.env}")
+        env_id, kwargs, wrapper = policy.env_id, dict(policy.env_kwargs), policy.env_wrapper
+        name = f"{policy.algo}"
+    else:
+        from agents.scripted import HandlingProcessPolicy, ModelBasedPolicy, PaperSequencePolicy
+
+        env_id = args.env or ("SoftHand-v0" if args.policy != "model-based" else None)
+        if env_id is None:
+            raise UserError("--policy model-based needs --env (a goal task)")
+        if args.policy == "paper":
+            policy = PaperSequencePolicy()
+        elif args.policy == "handling":
+            policy = HandlingProcessPolicy(args.grasp_deg)
+        else:
+            if not task_targets(env_id):
+                raise UserError(f"--policy model-based needs a goal task, not {env_id}")
+            probe = make_env(env_id, ModelBasedPolicy.env_kwargs)
+            policy = ModelBasedPolicy.from_env(probe)
+            probe.close()
+        kwargs, wrapper = dict(policy.env_kwargs), None
+        if policy.episode_steps is not None:
+            kwargs["max_episode_steps"] = policy.episode_steps
+        name = args.policy
+    kwargs.update(success_kwargs(env_id))  # issue 6's tolerance, whatever the run trained with
+    return policy, env_id, kwargs, wrapper, name
+
+
+# -------------------------------------------------------------------------------- rollouts
+def run_episode(
+    env: Any, policy: Any, seed: int, deterministic: bool = True, frames: list | None = None
+) -> dict[str, Any]:
+    """Play one episode from ``reset(seed=seed)``; returns its record (trajectory included).
+
+    ``frames``: if a list, ``env.render()`` frames are appended (``render_mode="rgb_array"``).
+    """
+    obs, info = env.reset(seed=seed)
+    poses, setpoints = [info["object_pose"]], [info["setpoint"]]
+    if frames is not None:
+        frames.append(env.render())
+    state, start = None, np.array([True])
+    ret, steps = 0.0, 0
+    while True:
+        action, state = policy.predict(obs, state, start, deterministic)
+        start = np.array([False])
+        obs, reward, terminated, truncated, info = env.step(action)
+        ret += float(reward)
+        steps += 1
+        poses.append(info["object_pose"])
+        setpoints.append(info["setpoint"])
+        if frames is not None:
+            frames.append(env.render())
+        if terminated or truncated:
+            break
+    return {
+        "seed": int(seed),
+        "success": bool(info["is_success"]),
+        "goal": [float(g) for g in info.get("goal", ())],
+        "final_pose": [float(v) for v in info["object_pose"]],
+        "return": ret,
+        "length": steps,
+        "termination_reason": info.get("termination_reason"),
+        "pose": np.array(poses),
+        "setpoint": np.array(setpoints),
+    }
+
+
+def evaluate(
+    env: Any, policy: Any, seeds: Sequence[int], targets: Sequence[str], deterministic: bool = True
+) -> tuple[dict[str, float], list[dict[str, Any]]]:
+    """Play every goal of ``seeds``; returns the summary and the episode records."""
+    episodes = []
+    for seed in seeds:
+        ep = run_episode(env, policy, seed, deterministic)
+        info = {"object_pose": ep["final_pose"], "goal": ep["goal"]}
+        ep["errors"] = final_errors(info, targets)
+        episodes.append(ep)
+    summary = summarize(
+        targets,
+        [ep["success"] for ep in episodes],
+        [ep["errors"] for ep in episodes],
+        [ep["return"] for ep in episodes],
+        [ep["length"] for ep in episodes],
+    )
+    summary["n_failures"] = sum(ep["termination_reason"] not in (None, "success")
+                                for ep in episodes)
+    return summary, episodes
+
+
+# --------------------------------------------------------------------------------- output
+def format_table(title: str, summary: dict[str, float], targets: Sequence[str]) -> str:
+    """A plain-text table of a summary."""
+    rows = [("episodes", f"{summary['n_episodes']:d}"),
+            ("success rate", f"{100 * summary['success_rate']:.1f} %")]
+    units = {"x": ("|x err|", "mm"), "theta": ("|theta err|", "deg")}
+    for t in targets:
+        label, unit = units[t]
+        key = ERROR_KEYS[t]
+        rows.append((f"final {label} median / mean / max",
+                     f"{summary[f'median_{key}']:.3f} / {summary[f'mean_{key}']:.3f} / "
+                     f"{summary[f'max_{key}']:.3f} {unit}"))
+    rows += [("return (mean)", f"{summary['mean_return']:.2f}"),
+             ("episode length (mean)", f"{summary['mean_length']:.1f}"),
+             ("failures (grasp lost etc.)", f"{summary['n_failures']:d}")]
+    width = max(len(r[0]) for r in rows)
+    lines = [title, "-" * len(title)] + [f"{a:<{width}}  {b}" for a, b in rows]
+    return "\n".join(lines)
+
+
+def plot_trajectories(path: Path, episodes: list[dict[str, Any]], targets: Sequence[str],
+                      dt: float, title: str, highlight: int = 0, n_max: int = 10) -> None:
+    """Object x and theta of up to ``n_max`` episodes (goals dashed); the set-points of episode
+    ``highlight`` over time and as a path in finger-angle space (rolling loops show there)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, axes = plt.subplots(1, 4, figsize=(16, 3.8))
+    shown = episodes[:n_max]
+    for k, ep in enumerate(shown):
+        t = np.arange(len(ep["pose"])) * dt
+        color = f"C{k % 10}"
+        axes[0].plot(t, ep["pose"][:, 0] * 1e3, color=color, lw=1)
+        axes[1].plot(t, np.degrees(ep["pose"][:, 2]), color=color, lw=1)
+        for name, g in zip(targets, ep["goal"], strict=True):
+            ax, val = (axes[0], g * 1e3) if name == "x" else (axes[1], math.degrees(g))
+            ax.axhline(val, color=color, ls="--", lw=0.8)
+    ep = episodes[highlight]
+    t = np.arange(len(ep["setpoint"])) * dt
+    axes[2].plot(t, np.degrees(ep["setpoint"][:, 0]), label="theta_1^d")
+    axes[2].plot(t, np.degrees(ep["setpoint"][:, 1]), label="theta_2^d")
+    axes[2].legend(fontsize=8)
+    for ax, label in zip(axes, ("object x (mm)", "object theta (deg)",
+                                f"set-points, episode {highlight} (deg)"), strict=False):
+        ax.set_xlabel("time (s)")
+        ax.set_ylabel(label)
+        ax.grid(alpha=0.3)
+    sp = np.degrees(ep["setpoint"])
+    axes[3].plot(sp[:, 0], sp[:, 1], lw=1)
+    axes[3].plot(sp[0, 0], sp[0, 1], "go", ms=5, label="start")
+    axes[3].plot(sp[-1, 0], sp[-1, 1], "rs", ms=5, label="end")
+    axes[3].set_xlabel("theta_1^d (deg)")
+    axes[3].set_ylabel("theta_2^d (deg)")
+    axes[3].set_title(f"finger-space path, episode {highlight}", fontsize=9)
+    axes[3].legend(fontsize=8)
+    axes[3].grid(alpha=0.3)
+    fig.suptitle(f"{title}: {len(shown)} episodes (goals dashed)")
+    fig.tight_layout()
+    fig.savefig(path, dpi=80)
+    plt.close(fig)
+
+
+def write_gif(path: Path, env_id: str, kwargs: dict[str, Any], wrapper: Any, policy: Any,
+              seed: int, size: int, deterministic: bool = True, fps: int = 25) -> None:
+    """Replay one episode with ``render_mode="rgb_array"`` and save it as a GIF (``fps``)."""
+    import imageio.v2 as imageio
+
+    env = make_env(env_id, kwargs, wrapper, render_mode="rgb_array", render_width=size,
+                   render_height=size)
+    frames: list = []
+    run_episode(env, policy, seed, deterministic, frames)
+    env.close()
+    stride = max(1, round(1.0 / (fps * env.unwrapped.dt)))
+    imageio.mimsave(path, frames[::stride], duration=1000.0 / fps, loop=0)
+
+
+def main(argv: Sequence[str] | None = None) -> dict[str, float]:
+    """CLI entry point; returns the summary."""
+    args = parse_args(argv)
+    if args.n_episodes < 1:
+        raise UserError("--n-episodes must be >= 1")
+    if not 0 <= args.gif_episode < args.n_episodes:
+        raise UserError("--gif-episode must index one of the episodes")
+    import torch
+
+    torch.set_num_threads(args.torch_threads)
+    policy, env_id, kwargs, wrapper, name = build(args)
+    targets = task_targets(env_id)
+    env = make_env(env_id, kwargs, wrapper)
+    if isinstance(policy, ModelPolicy):
+        policy.check_env(env)
+    seeds = goal_seeds(args.seed, args.n_episodes)
+    summary, episodes = evaluate(env, policy, seeds, targets, not args.stochastic)
+    title = f"{env_id}, {name} policy, {args.n_episodes} goals from seed {args.seed}"
+    print(format_table(title, summary, targets))
+    out = Path(args.out or f"logs/eval/{env_id}_{name}")
+    out.mkdir(parents=True, exist_ok=True)
+    record = {
+        "env_id": env_id,
+        "policy": args.model or args.policy,
+        "env_kwargs": kwargs,
+        "env_wrapper": wrapper,
+        "seed": args.seed,
+        "summary": summary,
+        "episodes": [{k: v for k, v in ep.items() if k not in ("pose", "setpoint")}
+                     for ep in episodes],
+    }
+    with (out / "results.yml").open("w") as fh:
+        yaml.safe_dump(record, fh, sort_keys=False)
+    if not args.no_plots:
+        plot_trajectories(out / "trajectories.png", episodes, targets, env.unwrapped.dt, title,
+                          args.gif_episode)
+        write_gif(out / "episode.gif", env_id, kwargs, wrapper, policy, seeds[args.gif_episode],
+                  args.gif_size, not args.stochastic)
+    env.close()
+    print(f"wrote {out}/results.yml" + ("" if args.no_plots else ", trajectories.png, episode.gif"))
+    return summary
+
+
+if __name__ == "__main__":
+    run_cli(main)

@@ -1,0 +1,144 @@
+"""Training CLI (agents.train): smoke runs, saved outputs, hyper-parameter parsing, error exits."""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+import yaml
+
+from agents import common, train
+
+ROOT = Path(__file__).resolve().parent.parent
+ENV = {**os.environ, "PYTHONPATH": str(ROOT), "SDL_VIDEODRIVER": "dummy", "MPLBACKEND": "Agg"}
+#: A tiny PPO run: 2 envs x 64 steps per update.
+TINY_PPO = ["--hyperparams", "n_envs:2", "n_steps:64", "batch_size:64", "n_epochs:1"]
+
+
+def run_module(module: str, *args: str, cwd: Path = ROOT) -> subprocess.CompletedProcess:
+    return subprocess.run(
+        [sys.executable, "-m", module, *args],
+        cwd=cwd, env=ENV, capture_output=True, text=True, timeout=300,
+    )
+
+
+def test_training_cli_smoke_run_writes_model_stats_config_and_tensorboard(tmp_path):
+    proc = run_module(
+        "agents.train", "--env", "SoftHandTranslate-v0", "--algo", "ppo", "--seed", "3",
+        "--n-timesteps", "256", "--eval-freq", "128", "--eval-episodes", "2",
+        "--save-freq", "128", "--log-folder", str(tmp_path), "--no-progress-bar",
+        "--env-kwargs", "ctrl_weight:0.02", "max_episode_steps:50", *TINY_PPO,
+    )
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    run = tmp_path / "ppo" / "SoftHandTranslate-v0_1"
+    for name in ("model.zip", "vecnormalize.pkl", "config.yml", "evaluations.npz",
+                 "best/model.zip", "best/vecnormalize.pkl"):
+        assert (run / name).is_file(), name
+    assert list((run / "checkpoints").glob("model_*_steps.zip"))
+    assert list((run / "tb").rglob("events.out.tfevents.*"))
+    config = yaml.safe_load((run / "config.yml").read_text())
+    assert config["env_id"] == "SoftHandTranslate-v0" and config["seed"] == 3
+    assert config["total_timesteps"] >= 256 and config["wall_time_s"] > 0
+    hp = config["hyperparams"]
+    # YAML entry merged with the overrides
+    assert hp["env_kwargs"]["ctrl_weight"] == 0.02
+    assert hp["env_kwargs"]["x_tolerance_mm"] == 1.0
+    assert hp["n_envs"] == 2 and hp["n_steps"] == 64
+    assert config["overrides"]["env_kwargs"] == {"ctrl_weight": 0.02, "max_episode_steps": 50}
+    assert {"stable-baselines3", "torch", "gymnasium"} <= set(config["versions"])
+    assert config["eval"]["success_kwargs"] == {"x_tolerance_mm": 1.0}
+    assert 0.0 <= config["best_validation"]["success_rate"] <= 1.0
+    # the saved run loads and acts on the env it was trained on
+    policy = common.ModelPolicy(run)
+    env = common.make_env("SoftHandTranslate-v0", policy.env_kwargs)
+    obs, _ = env.reset(seed=0)
+    action, _ = policy.predict(obs)
+    assert env.action_space.contains(np.asarray(action, dtype=np.float32))
+
+
+def test_sac_in_process_run_and_next_run_directory(tmp_path):
+    argv = ["--env", "SoftHandReorient-v0", "--algo", "sac", "--n-timesteps", "120",
+            "--eval-freq", "0", "--save-freq", "0", "--log-folder", str(tmp_path),
+            "--no-progress-bar", "--verbose", "0",
+            "--hyperparams", "n_envs:1", "learning_starts:50", "batch_size:32"]
+    first = train.main(argv)
+    second = train.main(argv)
+    assert first.name == "SoftHandReorient-v0_1" and second.name == "SoftHandReorient-v0_2"
+    assert (second / "model.zip").is_file() and not (second / "vecnormalize.pkl").exists()
+
+
+def test_hyperparams_anchor_merge_and_schedules(tmp_path):
+    conf = tmp_path / "ppo.yml"
+    conf.write_text(
+        ".base: &base\n  policy: MlpPolicy\n  n_timesteps: 100\n  learning_rate: lin_1e-3\n"
+        "  policy_kwargs: {net_arch: [8], activation_fn: relu}\n"
+        "SoftHandTranslate-v0:\n  <<: *base\n  n_envs: 2\n"
+    )
+    hp = common.load_hyperparams("ppo", "SoftHandTranslate-v0", str(conf))
+    assert hp["n_envs"] == 2 and hp["env_kwargs"] == {} and hp["normalize"] is False
+    kwargs = common.algo_kwargs("ppo", hp)
+    assert kwargs["learning_rate"](0.5) == pytest.approx(5e-4)
+    import torch.nn as nn
+
+    assert kwargs["policy_kwargs"]["activation_fn"] is nn.ReLU
+    assert "n_envs" not in kwargs and "policy" not in kwargs
+
+
+def test_shipped_yaml_entries_are_valid():
+    for algo in ("ppo",):
+        data = yaml.safe_load(common.config_path(algo, None).read_text())
+        for env_id in ("SoftHandTranslate-v0", "SoftHandReorient-v0", "SoftHandPose-v0"):
+            hp = common.load_hyperparams(algo, env_id)
+            common.algo_kwargs(algo, hp)
+            common.make_env(env_id, hp["env_kwargs"], hp.get("env_wrapper")).close()
+        assert all(k.startswith(".") or k.startswith("SoftHand") for k in data)
+
+
+def test_goal_seeds_replay_the_same_goals_after_rewind():
+    env = common.GoalSeeds(common.make_env("SoftHandPose-v0"), [7, 8])
+    goals = [env.reset()[1]["goal"] for _ in range(3)]
+    env.rewind()
+    again = env.reset()[1]["goal"]
+    np.testing.assert_array_equal(goals[0], goals[2])
+    np.testing.assert_array_equal(goals[0], again)
+    assert not np.array_equal(goals[0], goals[1])
+
+
+@pytest.mark.parametrize(
+    "argv,fragment",
+    [
+        (["--env", "NoSuchEnv-v0"], "unknown env id"),
+        (["--env", "SoftHand-v0"], "no entry for 'SoftHand-v0'"),
+        (["--env", "SoftHandTranslate-v0", "--env-kwargs", "bogus_kwarg:1"], "bad env kwargs"),
+        (["--env", "SoftHandTranslate-v0", "--env-kwargs", "max_delta_deg:-1"], "max_delta_deg"),
+        (["--env", "SoftHandTranslate-v0", "--env-kwargs", "novalue"], "key:value"),
+        (["--env", "SoftHandTranslate-v0", "--hyperparams", "not_a_ppo_key:1"], "no hyper-param"),
+        (["--env", "SoftHandTranslate-v0", "--conf-file", "/nonexistent.yml"], "not found"),
+    ],
+)
+def test_wrong_inputs_exit_2_with_one_line(tmp_path, capsys, argv, fragment):
+    with pytest.raises(SystemExit) as exc:
+        common.run_cli(train.main, [*argv, "--log-folder", str(tmp_path), "--no-progress-bar"])
+    assert exc.value.code == 2
+    err = capsys.readouterr().err
+    assert err.startswith("error: ") and err.count("\n") == 1 and fragment in err, err
+    assert not (tmp_path / "ppo").exists()  # nothing created for a rejected input
+
+
+def test_missing_required_key_is_reported(tmp_path, capsys):
+    conf = tmp_path / "ppo.yml"
+    conf.write_text("SoftHandTranslate-v0:\n  policy: MlpPolicy\n")
+    with pytest.raises(SystemExit):
+        common.run_cli(train.main, ["--env", "SoftHandTranslate-v0", "--conf-file", str(conf)])
+    assert "lacks required key(s) n_timesteps" in capsys.readouterr().err
+
+
+def test_error_exit_in_a_subprocess_has_no_traceback(tmp_path):
+    proc = run_module("agents.train", "--env", "SoftHandNope-v0", "--log-folder", str(tmp_path))
+    assert proc.returncode == 2
+    assert "Traceback" not in proc.stderr
+    assert proc.stderr.strip().count("\n") == 0 and "unknown env id" in proc.stderr
