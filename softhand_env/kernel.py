@@ -3,7 +3,9 @@
 * :func:`advance` integrates one system ``n`` classic-RK4 substeps with constant set-points,
   tracks the largest constraint residuals seen and stops at the first invalid state.
 * :func:`advance_batch` does the same for ``N`` independent systems in parallel (numba
-  ``prange``); each system may have its own parameter vector.
+  ``prange`` over blocks of :data:`LANES` systems, each block integrated in SIMD lanes, see
+  "lane kernel" below); each system may have its own parameter vector. Every system ends
+  bit for bit as :func:`advance` would leave it.
 
 Status flags (bitwise OR, returned per system):
 
@@ -33,7 +35,19 @@ import math
 import numpy as np
 from numba import njit, prange
 
-from softhand_env.model import DN_1, N_DIAG, NY, P_A, P_DT, TH_1, TH_OBJ, csm_rhs
+from softhand_env.model import (
+    _FASTMATH,
+    DN_1,
+    N_DIAG,
+    N_PARAMS,
+    NY,
+    P_A,
+    P_DT,
+    TH_1,
+    TH_OBJ,
+    csm_rhs,
+    csm_terms,
+)
 
 FLAG_NONFINITE = 1
 FLAG_CONSTRAINT = 2
@@ -94,6 +108,30 @@ def _state_flags(y, prm, ch, ch_limit):
     return flags
 
 
+@njit(cache=True, fastmath=False)
+def _suspect(y, prm):
+    """Cheap superset of ``_state_flags(y, prm, 0.0, ...) != 0``: True if some entry of y may
+    be non-finite (their sum is not finite; an overflowing sum of finite entries only costs
+    the exact check) or a d_n is outside [0, a)."""
+    s0 = y[0] + y[4]
+    s1 = y[1] + y[5]
+    s2 = y[2] + y[6]
+    s3 = y[3] + y[7]
+    for j in range(8, NY, 4):
+        s0 += y[j]
+        s1 += y[j + 1]
+        s2 += y[j + 2]
+        s3 += y[j + 3]
+    total = (s0 + s1) + (s2 + s3)
+    return _maybe_fatal(total, y[DN_1], y[DN_1 + 1], prm[P_A])
+
+
+@njit(cache=True, fastmath=False, inline="always")
+def _maybe_fatal(total, d1, d2, a):
+    """False only if the state sum ``total`` is finite and both d_n are in [0, a)."""
+    return not ((total - total == 0.0) & (d1 >= 0.0) & (d1 < a) & (d2 >= 0.0) & (d2 < a))
+
+
 @njit(cache=True)
 def base_exceeded(y, prm):
     """True if a contact circle has passed its fingertip base (tan theta_p > (a-d)/a_c)."""
@@ -111,6 +149,21 @@ def base_exceeded(y, prm):
 
 
 @njit(cache=True)
+def _finish(y, u, prm, ch_max, cn_max, ch_limit, diag, k, work):
+    """End of a call that ran all its substeps: residuals of the final state (the next stage-1
+    evaluation), the constraint and base flags; writes ``diag`` and returns the flags."""
+    csm_rhs(y, u, prm, k[0], work)
+    ch_max = max(ch_max, abs(work[0]), abs(work[1]))
+    cn_max = max(cn_max, abs(work[2]), abs(work[3]))
+    flags = _state_flags(y, prm, ch_max, ch_limit)
+    if flags == 0 and base_exceeded(y, prm):
+        flags = FLAG_BASE
+    diag[0] = ch_max
+    diag[1] = cn_max
+    return flags
+
+
+@njit(cache=True)
 def _advance_one(y, u, prm, n, ch_limit, diag, k, work):
     h = prm[P_DT]
     ch_max = 0.0
@@ -122,19 +175,15 @@ def _advance_one(y, u, prm, n, ch_limit, diag, k, work):
         ch_max = max(ch_max, ch)
         cn_max = max(cn_max, cn)
         done += 1
-        flags = _state_flags(y, prm, 0.0, ch_limit)
-        if flags != 0:
-            break
+        if _suspect(y, prm):
+            flags = _state_flags(y, prm, 0.0, ch_limit)
+            if flags != 0:
+                break
     if flags == 0:
-        # residuals of the final state (the next stage-1 evaluation)
-        csm_rhs(y, u, prm, k[0], work)
-        ch_max = max(ch_max, abs(work[0]), abs(work[1]))
-        cn_max = max(cn_max, abs(work[2]), abs(work[3]))
-        flags = _state_flags(y, prm, ch_max, ch_limit)
-        if flags == 0 and base_exceeded(y, prm):
-            flags = FLAG_BASE
-    diag[0] = ch_max
-    diag[1] = cn_max
+        flags = _finish(y, u, prm, ch_max, cn_max, ch_limit, diag, k, work)
+    else:
+        diag[0] = ch_max
+        diag[1] = cn_max
     return flags, done
 
 
@@ -169,6 +218,213 @@ def advance(y, u, prm, n, ch_limit, diag):
     return _advance_one(y, u, prm, n, ch_limit, diag, k, work)
 
 
+# ------------------------------------------------------------------------------ lane kernel
+# The batched kernel integrates blocks of LANES systems at once in structure-of-arrays form:
+# quantity j of lane l lives at [j * LANES + l] of a flat float64 array, so the loop over the
+# lanes of :func:`_rhs_lanes` (the model's :func:`~softhand_env.model.csm_terms`, inlined) is
+# a loop of unit-stride loads and stores that LLVM vectorises across systems (one AVX-512
+# register = 8 lanes, 2 per block; 4 lanes per AVX2 register). The model's sin/cos is
+# straight-line code (model.sincos): a libm call would stop the vectoriser. The arithmetic
+# per system is the single-system kernel's: the same RHS source and the same RK4
+# combinations in the same order, all in strict IEEE arithmetic, so each system of a batch
+# ends bit for bit where :func:`advance` takes it (state, diag, flags and the substep of a
+# fatal stop).
+
+#: Systems per block of the batched kernel (SIMD lanes).
+LANES = 16
+# rows of the per-block parameter array: the packed parameters, then the two set-points
+_R_U = N_PARAMS
+_NPU = N_PARAMS + 2
+# rows of a stage-derivative array: dy/dt (NY), then C^H (2) and C^N (2) of that stage
+_R_RES = NY
+_NK = NY + 4
+# blocks of at most this many systems run the single-system kernel instead (a lane costs
+# ~1/4 of a scalar system; a half block of 8 lanes then costs more than 2 systems)
+_SCALAR_MAX = 2
+
+
+@njit(cache=True, error_model="numpy", fastmath=_FASTMATH)
+def _rhs_lanes(Yl, Pl, Kl, nl):
+    """dy/dt and the residuals of lanes 0..nl-1: Yl (NY*LANES), Pl (_NPU*LANES) -> Kl
+    (_NK*LANES)."""
+    for l in range(nl):
+        y = (
+            Yl[0 * LANES + l], Yl[1 * LANES + l], Yl[2 * LANES + l], Yl[3 * LANES + l],
+            Yl[4 * LANES + l], Yl[5 * LANES + l], Yl[6 * LANES + l], Yl[7 * LANES + l],
+            Yl[8 * LANES + l], Yl[9 * LANES + l], Yl[10 * LANES + l], Yl[11 * LANES + l],
+            Yl[12 * LANES + l], Yl[13 * LANES + l], Yl[14 * LANES + l], Yl[15 * LANES + l],
+            Yl[16 * LANES + l], Yl[17 * LANES + l], Yl[18 * LANES + l], Yl[19 * LANES + l],
+        )
+        prm = (
+            Pl[0 * LANES + l], Pl[1 * LANES + l], Pl[2 * LANES + l], Pl[3 * LANES + l],
+            Pl[4 * LANES + l], Pl[5 * LANES + l], Pl[6 * LANES + l], Pl[7 * LANES + l],
+            Pl[8 * LANES + l], Pl[9 * LANES + l], Pl[10 * LANES + l], Pl[11 * LANES + l],
+            Pl[12 * LANES + l], Pl[13 * LANES + l], Pl[14 * LANES + l], Pl[15 * LANES + l],
+            Pl[16 * LANES + l], Pl[17 * LANES + l], Pl[18 * LANES + l], Pl[19 * LANES + l],
+            Pl[20 * LANES + l], Pl[21 * LANES + l], Pl[22 * LANES + l],
+        )
+        u = (Pl[_R_U * LANES + l], Pl[(_R_U + 1) * LANES + l])
+        t = csm_terms(y, u, prm)
+        Kl[0 * LANES + l] = y[9]
+        Kl[1 * LANES + l] = y[10]
+        Kl[2 * LANES + l] = y[11]
+        Kl[3 * LANES + l] = y[12]
+        Kl[4 * LANES + l] = y[13]
+        Kl[5 * LANES + l] = y[14]
+        Kl[6 * LANES + l] = y[15]
+        Kl[7 * LANES + l] = y[16]
+        Kl[8 * LANES + l] = y[17]
+        Kl[9 * LANES + l] = t[0]
+        Kl[10 * LANES + l] = t[1]
+        Kl[11 * LANES + l] = t[2]
+        Kl[12 * LANES + l] = t[3]
+        Kl[13 * LANES + l] = t[4]
+        Kl[14 * LANES + l] = t[5]
+        Kl[15 * LANES + l] = t[6]
+        Kl[16 * LANES + l] = t[7]
+        Kl[17 * LANES + l] = t[8]
+        Kl[18 * LANES + l] = t[9]
+        Kl[19 * LANES + l] = t[10]
+        Kl[(_R_RES + 0) * LANES + l] = t[11]
+        Kl[(_R_RES + 1) * LANES + l] = t[12]
+        Kl[(_R_RES + 2) * LANES + l] = t[13]
+        Kl[(_R_RES + 3) * LANES + l] = t[14]
+
+
+@njit(cache=True, error_model="numpy")
+def _rk4_lanes(Yl, Pl, Hl, K1, K2, K3, K4, Tl, nl):
+    """One RK4 substep of every lane in place, with the combinations of :func:`_rk4_substep`.
+
+    ``Hl`` (NY*LANES) holds each lane's step h in every row, so that the combinations are
+    flat unit-stride loops over all LANES lanes (lanes >= nl have zero derivatives and stay).
+    """
+    _rhs_lanes(Yl, Pl, K1, nl)
+    for i in range(NY * LANES):
+        Tl[i] = Yl[i] + 0.5 * Hl[i] * K1[i]
+    _rhs_lanes(Tl, Pl, K2, nl)
+    for i in range(NY * LANES):
+        Tl[i] = Yl[i] + 0.5 * Hl[i] * K2[i]
+    _rhs_lanes(Tl, Pl, K3, nl)
+    for i in range(NY * LANES):
+        Tl[i] = Yl[i] + Hl[i] * K3[i]
+    _rhs_lanes(Tl, Pl, K4, nl)
+    for i in range(NY * LANES):
+        Yl[i] += Hl[i] / 6.0 * (K1[i] + 2.0 * K2[i] + 2.0 * K3[i] + K4[i])
+
+
+@njit(cache=True, error_model="numpy")
+def _lanes_suspect(Yl, Pl, CHM, CNM, K1, nl):
+    """Update the running residual maxima from the stage-1 residuals in K1; return the number
+    of lanes whose state may carry a fatal flag (a non-finite entry or a d_n outside [0, a))."""
+    count = 0
+    for l in range(nl):
+        CHM[l] = max(CHM[l], max(abs(K1[_R_RES * LANES + l]), abs(K1[(_R_RES + 1) * LANES + l])))
+        CNM[l] = max(
+            CNM[l], max(abs(K1[(_R_RES + 2) * LANES + l]), abs(K1[(_R_RES + 3) * LANES + l]))
+        )
+        # as _suspect: the state sum is finite if every entry is (four partial sums)
+        s0 = Yl[0 * LANES + l] + Yl[4 * LANES + l]
+        s1 = Yl[1 * LANES + l] + Yl[5 * LANES + l]
+        s2 = Yl[2 * LANES + l] + Yl[6 * LANES + l]
+        s3 = Yl[3 * LANES + l] + Yl[7 * LANES + l]
+        for j in range(8, NY, 4):
+            s0 += Yl[j * LANES + l]
+            s1 += Yl[(j + 1) * LANES + l]
+            s2 += Yl[(j + 2) * LANES + l]
+            s3 += Yl[(j + 3) * LANES + l]
+        total = (s0 + s1) + (s2 + s3)
+        bad = _maybe_fatal(
+            total, Yl[DN_1 * LANES + l], Yl[(DN_1 + 1) * LANES + l], Pl[P_A * LANES + l]
+        )
+        count += 1 if bad else 0
+    return count
+
+
+@njit(cache=True)
+def _advance_block(Y, U, PRM, n, ch_limit, DIAG, FLAGS, systems):
+    """Advance the systems ``systems`` (at most LANES indices into Y) like :func:`_advance_one`,
+    in lanes; spare lanes repeat a live system and are discarded."""
+    m = systems.shape[0]
+    if m <= _SCALAR_MAX:
+        # a nearly empty block is cheaper one system at a time
+        k = np.empty((5, NY))
+        work = np.zeros(N_DIAG)
+        for s in systems:
+            FLAGS[s], _ = _advance_one(Y[s], U[s], PRM[s], n, ch_limit, DIAG[s], k, work)
+        return
+    # lanes computed: a multiple of the vector width, so no scalar remainder runs (a run-time
+    # count also keeps LLVM from treating the lane loop as a tiny loop it will not vectorise)
+    nl = LANES if m > LANES // 2 else LANES // 2
+    Yl = np.empty(NY * LANES)
+    Pl = np.empty(_NPU * LANES)
+    K1 = np.zeros(_NK * LANES)
+    K2 = np.zeros(_NK * LANES)
+    K3 = np.zeros(_NK * LANES)
+    K4 = np.zeros(_NK * LANES)
+    Tl = np.empty(NY * LANES)
+    Hl = np.empty(NY * LANES)
+    CHM = np.zeros(LANES)
+    CNM = np.zeros(LANES)
+    live = np.zeros(LANES, dtype=np.bool_)
+    for l in range(LANES):
+        s = systems[min(l, m - 1)]
+        live[l] = l < m
+        for j in range(NY):
+            Yl[j * LANES + l] = Y[s, j]
+        for j in range(N_PARAMS):
+            Pl[j * LANES + l] = PRM[s, j]
+        Pl[_R_U * LANES + l] = U[s, 0]
+        Pl[(_R_U + 1) * LANES + l] = U[s, 1]
+        for j in range(NY):
+            Hl[j * LANES + l] = PRM[s, P_DT]
+    n_live = m
+    for _ in range(n):
+        _rk4_lanes(Yl, Pl, Hl, K1, K2, K3, K4, Tl, nl)
+        if _lanes_suspect(Yl, Pl, CHM, CNM, K1, nl) == 0:
+            continue
+        # some lane may carry a fatal flag: stop those (state, diag and flags of that substep)
+        for l in range(m):
+            if not live[l]:
+                continue
+            s = systems[l]
+            y = Y[s]
+            for j in range(NY):
+                y[j] = Yl[j * LANES + l]
+            flags = _state_flags(y, PRM[s], 0.0, ch_limit)
+            if flags != 0:
+                FLAGS[s] = flags
+                DIAG[s, 0] = CHM[l]
+                DIAG[s, 1] = CNM[l]
+                live[l] = False
+                n_live -= 1
+        if n_live == 0:
+            break
+        # stopped and spare lanes follow a live one from here on (finite, never suspect
+        # before it is)
+        src = 0
+        while not live[src]:
+            src += 1
+        for l in range(nl):
+            if not live[l]:
+                for j in range(NY):
+                    Yl[j * LANES + l] = Yl[j * LANES + src]
+                for j in range(_NPU):
+                    Pl[j * LANES + l] = Pl[j * LANES + src]
+                for j in range(NY):
+                    Hl[j * LANES + l] = Hl[j * LANES + src]
+    if n_live == 0:
+        return
+    k = np.empty((5, NY))
+    work = np.zeros(N_DIAG)
+    for l in range(m):
+        if live[l]:
+            s = systems[l]
+            y = Y[s]
+            for j in range(NY):
+                y[j] = Yl[j * LANES + l]
+            FLAGS[s] = _finish(y, U[s], PRM[s], CHM[l], CNM[l], ch_limit, DIAG[s], k, work)
+
+
 @njit(cache=True, parallel=True)
 def advance_batch(Y, U, PRM, n, ch_limit, DIAG, FLAGS):
     """Advance ``N`` independent systems ``n`` substeps each, in place, in parallel.
@@ -189,13 +445,27 @@ def advance_batch(Y, U, PRM, n, ch_limit, DIAG, FLAGS):
         are skipped (their flags are kept); the others get their new flags.
     """
     N = Y.shape[0]
-    for s in prange(N):
-        if FLAGS[s] & (FATAL_FLAGS | FLAG_SKIP):
-            continue
-        k = np.empty((5, NY))
-        work = np.zeros(N_DIAG)
-        flags, _ = _advance_one(Y[s], U[s], PRM[s], n, ch_limit, DIAG[s], k, work)
-        FLAGS[s] = flags
+    active = np.empty(N, dtype=np.int64)
+    n_active = 0
+    for s in range(N):
+        if not FLAGS[s] & (FATAL_FLAGS | FLAG_SKIP):
+            active[n_active] = s
+            n_active += 1
+    # blocks of LANES systems; fewer than 4 full blocks go in half blocks (less padding, more
+    # blocks to share among threads; a full block costs ~15% less per system), and up to
+    # 2 * _SCALAR_MAX systems one by one (threads share them; a lane block would not be faster)
+    if n_active >= 4 * LANES:
+        width = LANES
+    elif n_active > 2 * _SCALAR_MAX:
+        width = LANES // 2
+    else:
+        width = 1
+    n_blocks = (n_active + width - 1) // width
+    for b in prange(n_blocks):
+        _advance_block(
+            Y, U, PRM, n, ch_limit, DIAG, FLAGS,
+            active[b * width : min((b + 1) * width, n_active)],
+        )
 
 
 def advance_batch_py(

@@ -73,9 +73,13 @@ Q_NAMES = ("x_obj", "y_obj", "theta_obj", "theta_1", "theta_2", "d_n1", "d_n2", 
 ) = range(23)
 N_PARAMS = 23
 
-# LLVM fast-math flags for the hot path: contraction (FMA), reciprocal and approximate-function
-# rewrites; no "nnan"/"ninf" so NaN detection keeps working.
-_FASTMATH = {"contract", "arcp", "afn", "reassoc", "nsz"}
+# Floating-point mode of the right-hand side: strict IEEE (no LLVM fast-math). The single-system
+# kernel and the lane (SIMD) kernel compile the same source in different contexts; with no
+# contraction or reassociation LLVM must evaluate it as written in both, so the batched kernel
+# reproduces the single one bit for bit (fast-math {contract, arcp, afn, reassoc, nsz} is ~8%
+# faster but lets the two round differently, and a grasp on the edge of being lost could then
+# stop one substep apart). NaN/inf propagate as usual.
+_FASTMATH = False
 
 
 def pack_params(params: HandParams) -> np.ndarray:
@@ -128,11 +132,64 @@ def initial_state(params: HandParams) -> np.ndarray:
     return y
 
 
+# sincos: Cody-Waite reduction by pi/2 (33-bit leading part, exact product for |k| < 2^20)
+# and the fdlibm minimax kernels on [-pi/4, pi/4]
+_INV_PIO2 = 6.36619772367581382433e-01
+_PIO2_1 = 1.57079632673412561417e00
+_PIO2_1T = 6.07710050650619224932e-11
+_S1 = -1.66666666666666324348e-01
+_S2 = 8.33333333332248946124e-03
+_S3 = -1.98412698298579493134e-04
+_S4 = 2.75573137070700676789e-06
+_S5 = -2.50507602534068634195e-08
+_S6 = 1.58969099521155010221e-10
+_C1 = 4.16666666666666019037e-02
+_C2 = -1.38888888888741095749e-03
+_C3 = 2.48015872894767294178e-05
+_C4 = -2.75573143513906633035e-07
+_C5 = 2.08757232129817482790e-09
+_C6 = -1.13596475577881948265e-11
+
+
+@njit(cache=True, error_model="numpy", fastmath=False)
+def sincos(x):
+    """(sin x, cos x) in straight-line floating-point code (no libm call, no branch).
+
+    Used by the model's right-hand side so that the lane kernel of :mod:`softhand_env.kernel`
+    vectorises across systems (a libm call would stop LLVM's loop vectoriser) and the
+    single-system kernel computes exactly the same function. Error <= 1 ulp against libm for
+    |x| < 1e5 (tested to 2 ulp over that range); accurate to ~|x| 1e-26 absolute up to
+    |x| ~ 1.6e6, inaccurate beyond (far outside any state the kernel accepts); NaN and
+    +-inf give NaN. Deliberately compiled without fast-math: reassociation would destroy the
+    two-part reduction and fdlibm's compensated 1 - x^2/2. ``fastmath=False`` must stay
+    explicit: numba compiles a callee that leaves fastmath unset with its caller's flags
+    (should a caller ever use fast-math), and caches that version for every later caller.
+    """
+    k = np.floor(x * _INV_PIO2 + 0.5)
+    r = (x - k * _PIO2_1) - k * _PIO2_1T
+    z = r * r
+    ps = _S2 + z * (_S3 + z * (_S4 + z * (_S5 + z * _S6)))
+    s = r + (z * r) * (_S1 + z * ps)
+    pc = z * (_C1 + z * (_C2 + z * (_C3 + z * (_C4 + z * (_C5 + z * _C6)))))
+    hz = 0.5 * z
+    w = 1.0 - hz
+    c = w + (((1.0 - w) - hz) + z * pc)
+    quadrant = k - 4.0 * np.floor(0.25 * k)  # 0, 1, 2, 3 (NaN for NaN / inf)
+    odd = quadrant == 1.0 or quadrant == 3.0
+    s_abs = c if odd else s
+    c_abs = s if odd else c
+    sin_x = -s_abs if quadrant >= 2.0 else s_abs
+    cos_x = -c_abs if (quadrant == 1.0 or quadrant == 2.0) else c_abs
+    return sin_x, cos_x
+
+
 @njit(cache=True, error_model="numpy", fastmath=_FASTMATH, inline="always")
-def _finger(q, p, prm, i, co, so):
+def _finger(y, prm, i, co, so):
     """All model terms of finger i (0 = right, 1 = left) as a tuple of scalars.
 
-    ``co``, ``so`` are cos/sin theta_obj. Returns
+    ``y`` is the state [q, p, ...] as anything indexable (a float64 array or a tuple: the
+    same code serves the single-system and the lane kernels). ``co``, ``so`` are cos/sin
+    theta_obj. Returns
     ``(sgn, A, B, E, F, bH, bN, CH, f_th, f_obj, f_dn, f_dt)`` where, with sgn = (-1)^i in the
     paper's numbering (i = 1 right, 2 left):
 
@@ -148,8 +205,7 @@ def _finger(q, p, prm, i, co, so):
     ti = TH_1 + i
     ni = DN_1 + i
     di = DT_1 + i
-    ci = math.cos(q[ti])
-    si = math.sin(q[ti])
+    si, ci = sincos(y[ti])
     # fingertip centre O_i (Eqs 5.7-5.8) and its first/second derivatives w.r.t. theta_i
     Ox = -sgn * prm[P_WFI] + sgn * (L * si + dfi * ci)
     Oy = L * ci - dfi * si
@@ -160,15 +216,15 @@ def _finger(q, p, prm, i, co, so):
     # contact angle theta_pi = theta_i + sgn * theta_obj
     cp = ci * co - sgn * si * so
     sp = si * co + sgn * ci * so
-    vx = p[X_OBJ]
-    vy = p[Y_OBJ]
-    wo = p[TH_OBJ]
-    wi = p[ti]
-    vdn = p[ni]
-    dn = q[ni]
-    dt = q[di]
-    rx = q[X_OBJ] - Ox
-    ry = q[Y_OBJ] - Oy
+    vx = y[NQ + X_OBJ]
+    vy = y[NQ + Y_OBJ]
+    wo = y[NQ + TH_OBJ]
+    wi = y[NQ + ti]
+    vdn = y[NQ + ni]
+    dn = y[ni]
+    dt = y[di]
+    rx = y[X_OBJ] - Ox
+    ry = y[Y_OBJ] - Oy
     vrx = vx - Ox1 * wi
     vry = vy - Oy1 * wi
     rho = prm[P_A] - dn
@@ -191,21 +247,24 @@ def _finger(q, p, prm, i, co, so):
     piE = math.pi * prm[P_E]
     kb = prm[P_KB]
     sx = prm[P_SX1 + i]
-    tp = sp / cp
-    ic2 = 1.0 / (cp * cp)
+    icp = 1.0 / cp
+    tp = sp * icp
+    ic2 = icp * icp
     dP_dn = piE * (dn * dn * ic2 + 2.0 * sx * dn * dt * tp + kb * dt * dt)
     dP_dt = piE * (sx * dn * dn * tp + 2.0 * kb * dn * dt)
     dP_dtp = piE * ((2.0 / 3.0) * dn * dn * dn * tp * ic2 + sx * dn * dn * dt * ic2)
     f_dn = -dP_dn - prm[P_CN] * vdn
-    f_dt = -dP_dt - prm[P_CT] * p[di]
+    f_dt = -dP_dt - prm[P_CT] * y[NQ + di]
     return sgn, A, B, E, F, bH, bN, CH, -dP_dtp, -sgn * dP_dtp, f_dn, f_dt
 
 
 @njit(cache=True)
 def _all_terms(q, p, prm, Phi, b, C, f):
     """Fill Phi (4, 9), b (4,), C (2,) and f (9,) (without PID torques) for both fingers."""
-    co = math.cos(q[TH_OBJ])
-    so = math.sin(q[TH_OBJ])
+    y = np.empty(2 * NQ)
+    y[:NQ] = q[:NQ]
+    y[NQ:] = p[:NQ]
+    so, co = sincos(y[TH_OBJ])
     for r in range(4):
         for j in range(NQ):
             Phi[r, j] = 0.0
@@ -213,7 +272,7 @@ def _all_terms(q, p, prm, Phi, b, C, f):
         f[j] = 0.0
     f[Y_OBJ] = -prm[P_MOBJ] * prm[P_G]
     for i in range(2):
-        sgn, A, B, E, F, bH, bN, CH, f_th, f_obj, f_dn, f_dt = _finger(q, p, prm, i, co, so)
+        sgn, A, B, E, F, bH, bN, CH, f_th, f_obj, f_dn, f_dt = _finger(y, prm, i, co, so)
         Phi[i, X_OBJ] = sgn * co
         Phi[i, Y_OBJ] = sgn * so
         Phi[i, TH_OBJ] = A
@@ -304,34 +363,39 @@ def pid_torques(y, u, prm, tau):
         )
 
 
-@njit(cache=True, error_model="numpy", fastmath=_FASTMATH)
-def csm_rhs(y, u, prm, dy, diag):
-    """Time derivative of the integrated state under the CSM (Eq 5.24) and PID (Eq 5.42).
+@njit(cache=True, error_model="numpy", fastmath=_FASTMATH, inline="always")
+def _inverse_pivot(d):
+    """1 / d for a pivot d > 0 of a positive definite matrix, NaN otherwise (branch-free)."""
+    return 1.0 / d if d > 0.0 else math.nan
+
+
+@njit(cache=True, error_model="numpy", fastmath=_FASTMATH, inline="always")
+def csm_terms(y, u, prm):
+    """The model's right-hand side as a tuple of scalars: the single definition of the physics.
 
     Solves M dp/dt = f + Phi^T lambda, Phi dp/dt = -gamma through the 4x4 Schur complement
     S = Phi M^-1 Phi^T (written out with the sparsity of Phi; M is diagonal).
 
-    Parameters
-    ----------
-    y : ndarray, shape (20,)
-        State [q, p, z].
-    u : ndarray, shape (2,)
-        Finger-angle set-points (rad).
-    prm : ndarray, shape (N_PARAMS,)
-    dy : ndarray, shape (20,), output
-        dy/dt.
-    diag : ndarray, shape (>= 10,), output
-        C^H (m, 2), C^N (m/s, 2), PID torques (N m, 2), lambda (N, N, N, N: 4) at ``y``.
+    ``y`` (state, >= 20 entries), ``u`` (2 set-points) and ``prm`` (N_PARAMS) may be float64
+    arrays or tuples of floats: :func:`csm_rhs` passes arrays, the lane kernel of
+    :mod:`softhand_env.kernel` tuples loaded from its structure-of-arrays block, and the
+    function is inlined (numba IR) into both, so that both compile the same source (in
+    strict IEEE arithmetic, see ``_FASTMATH``: the two give bit-identical results).
+
+    Returns ``(dp (9 accelerations), dz1, dz2, CH1, CH2, CN1, CN2, tau1, tau2, lH1, lH2, lN1,
+    lN2)``, flattened: 21 floats (see :func:`csm_rhs` for the meaning).
     """
-    q = y[:NQ]
-    p = y[NQ : 2 * NQ]
-    co = math.cos(q[TH_OBJ])
-    so = math.sin(q[TH_OBJ])
-    s1, A1, B1, E1, F1, bH1, bN1, CH1, fth1, fo1, fdn1, fdt1 = _finger(q, p, prm, 0, co, so)
-    s2, A2, B2, E2, F2, bH2, bN2, CH2, fth2, fo2, fdn2, fdt2 = _finger(q, p, prm, 1, co, so)
+    so, co = sincos(y[TH_OBJ])
+    s1, A1, B1, E1, F1, bH1, bN1, CH1, fth1, fo1, fdn1, fdt1 = _finger(y, prm, 0, co, so)
+    s2, A2, B2, E2, F2, bH2, bN2, CH2, fth2, fo2, fdn2, fdt2 = _finger(y, prm, 1, co, so)
+    vx = y[NQ + X_OBJ]
+    vy = y[NQ + Y_OBJ]
+    wo = y[NQ + TH_OBJ]
+    w1 = y[NQ + TH_1]
+    w2 = y[NQ + TH_2]
     # PID torques (Eq 5.42)
-    tau1 = -prm[P_KP] * (q[TH_1] - u[0]) - prm[P_KD] * p[TH_1] - prm[P_KI] * y[2 * NQ]
-    tau2 = -prm[P_KP] * (q[TH_2] - u[1]) - prm[P_KD] * p[TH_2] - prm[P_KI] * y[2 * NQ + 1]
+    tau1 = -prm[P_KP] * (y[TH_1] - u[0]) - prm[P_KD] * w1 - prm[P_KI] * y[2 * NQ]
+    tau2 = -prm[P_KP] * (y[TH_2] - u[1]) - prm[P_KD] * w2 - prm[P_KI] * y[2 * NQ + 1]
     fx = 0.0
     fy = -prm[P_MOBJ] * prm[P_G]
     fo = fo1 + fo2
@@ -342,16 +406,13 @@ def csm_rhs(y, u, prm, dy, diag):
     m1 = 1.0 / prm[P_I1]
     m2 = 1.0 / prm[P_I2]
     md = 1.0 / prm[P_MDEF]
-    vx = p[X_OBJ]
-    vy = p[Y_OBJ]
-    wo = p[TH_OBJ]
     # constraint velocities Phi p: holonomic C^H-dot and non-holonomic C^N
     cv = co * vx + so * vy
     cw = -so * vx + co * vy
-    dCH1 = s1 * cv + A1 * wo + B1 * p[TH_1] + p[DN_1]
-    dCH2 = s2 * cv + A2 * wo + B2 * p[TH_2] + p[DN_2]
-    CN1 = cw + E1 * wo + F1 * p[TH_1] + p[DT_1]
-    CN2 = cw + E2 * wo + F2 * p[TH_2] + p[DT_2]
+    dCH1 = s1 * cv + A1 * wo + B1 * w1 + y[NQ + DN_1]
+    dCH2 = s2 * cv + A2 * wo + B2 * w2 + y[NQ + DN_2]
+    CN1 = cw + E1 * wo + F1 * w1 + y[NQ + DT_1]
+    CN2 = cw + E2 * wo + F2 * w2 + y[NQ + DT_2]
     # Phi M^-1 f
     cf = mx * (co * fx + so * fy)
     wf = mx * (-so * fx + co * fy)
@@ -374,51 +435,73 @@ def csm_rhs(y, u, prm, dy, diag):
     S21 = mo * A2 * E1
     S31 = mo * A2 * E2 + m2 * B2 * F2
     S32 = mx + mo * E1 * E2
-    # Cholesky S = L L^T (unrolled)
-    L00 = math.sqrt(S00)
-    L10 = S10 / L00
-    L20 = S20 / L00
-    L30 = S30 / L00
-    L11 = math.sqrt(S11 - L10 * L10)
-    L21 = (S21 - L20 * L10) / L11
-    L31 = (S31 - L30 * L10) / L11
-    L22 = math.sqrt(S22 - L20 * L20 - L21 * L21)
-    L32 = (S32 - L30 * L20 - L31 * L21) / L22
-    L33 = math.sqrt(S33 - L30 * L30 - L31 * L31 - L32 * L32)
-    z0 = r0 / L00
-    z1 = (r1 - L10 * z0) / L11
-    z2 = (r2 - L20 * z0 - L21 * z1) / L22
-    z3 = (r3 - L30 * z0 - L31 * z1 - L32 * z2) / L33
-    lN2 = z3 / L33
-    lN1 = (z2 - L32 * lN2) / L22
-    lH2 = (z1 - L21 * lN1 - L31 * lN2) / L11
-    lH1 = (z0 - L10 * lH2 - L20 * lN1 - L30 * lN2) / L00
+    # S = L D L^T (unrolled; no square roots), a_ij = L_ij D_j, i_j = 1 / D_j. S is positive
+    # definite, so a pivot D_j <= 0 (or NaN) only comes from a diverged state: it gives NaN,
+    # as the square root of a Cholesky factorisation would, and the state is flagged
+    # non-finite
+    i0 = _inverse_pivot(S00)
+    L10 = S10 * i0
+    L20 = S20 * i0
+    L30 = S30 * i0
+    a21 = S21 - L20 * S10
+    a31 = S31 - L30 * S10
+    i1 = _inverse_pivot(S11 - L10 * S10)
+    L21 = a21 * i1
+    L31 = a31 * i1
+    a32 = S32 - L30 * S20 - L31 * a21
+    i2 = _inverse_pivot(S22 - L20 * S20 - L21 * a21)
+    L32 = a32 * i2
+    i3 = _inverse_pivot(S33 - L30 * S30 - L31 * a31 - L32 * a32)
+    # forward substitution, scaling by D^-1, back substitution
+    fw1 = r1 - L10 * r0
+    fw2 = r2 - L20 * r0 - L21 * fw1
+    fw3 = r3 - L30 * r0 - L31 * fw1 - L32 * fw2
+    lN2 = fw3 * i3
+    lN1 = fw2 * i2 - L32 * lN2
+    lH2 = fw1 * i1 - L21 * lN1 - L31 * lN2
+    lH1 = r0 * i0 - L10 * lH2 - L20 * lN1 - L30 * lN2
     # accelerations M^-1 (f + Phi^T lambda)
-    for j in range(NQ):
-        dy[j] = p[j]
     lc = s1 * lH1 + s2 * lH2
     lw = lN1 + lN2
-    dy[NQ + X_OBJ] = mx * (fx + co * lc - so * lw)
-    dy[NQ + Y_OBJ] = mx * (fy + so * lc + co * lw)
-    dy[NQ + TH_OBJ] = mo * (fo + A1 * lH1 + A2 * lH2 + E1 * lN1 + E2 * lN2)
-    dy[NQ + TH_1] = m1 * (ft1 + B1 * lH1 + F1 * lN1)
-    dy[NQ + TH_2] = m2 * (ft2 + B2 * lH2 + F2 * lN2)
-    dy[NQ + DN_1] = md * (fdn1 + lH1)
-    dy[NQ + DN_2] = md * (fdn2 + lH2)
-    dy[NQ + DT_1] = md * (fdt1 + lN1)
-    dy[NQ + DT_2] = md * (fdt2 + lN2)
-    dy[2 * NQ] = q[TH_1] - u[0]
-    dy[2 * NQ + 1] = q[TH_2] - u[1]
-    diag[0] = CH1
-    diag[1] = CH2
-    diag[2] = CN1
-    diag[3] = CN2
-    diag[4] = tau1
-    diag[5] = tau2
-    diag[6] = lH1
-    diag[7] = lH2
-    diag[8] = lN1
-    diag[9] = lN2
+    return (
+        mx * (fx + co * lc - so * lw),
+        mx * (fy + so * lc + co * lw),
+        mo * (fo + A1 * lH1 + A2 * lH2 + E1 * lN1 + E2 * lN2),
+        m1 * (ft1 + B1 * lH1 + F1 * lN1),
+        m2 * (ft2 + B2 * lH2 + F2 * lN2),
+        md * (fdn1 + lH1),
+        md * (fdn2 + lH2),
+        md * (fdt1 + lN1),
+        md * (fdt2 + lN2),
+        y[TH_1] - u[0],
+        y[TH_2] - u[1],
+        CH1, CH2, CN1, CN2, tau1, tau2, lH1, lH2, lN1, lN2,
+    )
+
+
+@njit(cache=True, error_model="numpy", fastmath=_FASTMATH)
+def csm_rhs(y, u, prm, dy, diag):
+    """Time derivative of the integrated state under the CSM (Eq 5.24) and PID (Eq 5.42).
+
+    Parameters
+    ----------
+    y : ndarray, shape (20,)
+        State [q, p, z].
+    u : ndarray, shape (2,)
+        Finger-angle set-points (rad).
+    prm : ndarray, shape (N_PARAMS,)
+    dy : ndarray, shape (20,), output
+        dy/dt.
+    diag : ndarray, shape (>= 10,), output
+        C^H (m, 2), C^N (m/s, 2), PID torques (N m, 2), lambda (N, N, N, N: 4) at ``y``.
+    """
+    t = csm_terms(y, u, prm)
+    for j in range(NQ):
+        dy[j] = y[NQ + j]
+    for j in range(NQ + 2):
+        dy[NQ + j] = t[j]
+    for j in range(N_DIAG):
+        diag[j] = t[NQ + 2 + j]
 
 
 #: Length of the ``diag`` output of :func:`csm_rhs`.

@@ -239,13 +239,11 @@ def test_batched_kernel_matches_single_kernel_with_per_system_params():
     DIAG, FLAGS = kernel.advance_batch_py(Y, U, PRM, 500)
     for s in range(N):
         d = advance(Y_single[s], U[s], PRM[s], 500)
-        # C^H and C^N are differences of O(0.05 m) and O(1 m/s) terms: fast-math code
-        # compiled into the parallel loop may round differently, ~1e-16 absolute
-        np.testing.assert_allclose(DIAG[s], d, rtol=0, atol=1e-14)
+        # both kernels inline the same model.csm_terms, compiled without fast-math
+        # (model._FASTMATH): the lane-batched arithmetic is the scalar one, bit for bit
+        np.testing.assert_array_equal(DIAG[s], d)
     assert np.all(FLAGS == 0)
-    for block, scale in ((slice(0, NQ), 1e-13), (slice(NQ, 2 * NQ), 1e-10)):
-        err = np.abs(Y[:, block] - Y_single[:, block]).max() / np.abs(Y_single[:, block]).max()
-        assert err <= scale, (block, err)
+    np.testing.assert_array_equal(Y, Y_single)
 
 
 # -------------------------------------------------------------------- invalid situations
