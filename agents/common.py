@@ -19,7 +19,8 @@
 Layout of a run directory written by :mod:`agents.train`::
 
     <log-folder>/<algo>/<env_id>_<k>/
-        config.yml            config actually used (YAML entry + overrides, seed, versions)
+        config.yml            config actually used (YAML entry + overrides, seed, versions,
+                              env_signature: what the model depends on, checked on load)
         model.zip             final model          vecnormalize.pkl   its VecNormalize stats
         best/model.zip        best on the validation goals, best/vecnormalize.pkl
         checkpoints/          CheckpointCallback (model_<n>_steps.zip + vecnormalize)
@@ -485,6 +486,8 @@ class ModelPolicy:
 
     def __init__(self, path: str | Path, device: str = "cpu"):
         zip_path, stats_path, config = resolve_model(path)
+        #: The model zip.
+        self.path = zip_path
         self.config = config
         self.env_id: str = config["env_id"]
         self.algo: str = config["algo"]
@@ -517,14 +520,35 @@ class ModelPolicy:
                 raise UserError(f"cannot load {stats_path}: {type(exc).__name__}: {exc}") from None
         self.recurrent = self.algo == "ppo_lstm"
 
-    def check_env(self, env: gym.Env) -> None:
-        """Raise :class:`UserError` if the model does not fit ``env``'s spaces."""
-        want = self.model.observation_space.shape
-        if env.observation_space.shape != want:
-            raise UserError(
-                f"model expects observations of shape {want}, the env gives "
-                f"{env.observation_space.shape}"
-            )
+    def check_env(self, env: gym.Env, ignore: Sequence[str] = ()) -> None:
+        """Raise :class:`UserError` if the model does not fit ``env``.
+
+        Two checks, both before the first step: the run's env signature (``env_signature`` in
+        its ``config.yml``, written by :mod:`agents.train`: env id, package version, task,
+        observation layout, action mapping, control period; see
+        :mod:`softhand_env.envs.signature`) against the signature of ``env``'s base
+        environment, then the model's observation/action shapes against ``env``'s (wrappers
+        included). ``ignore`` names signature fields not to compare (e.g. ``version``). A run
+        without a signature (trained before signatures existed) only gets the shape check and
+        a warning on stderr.
+        """
+        from softhand_env.envs.signature import check_model_compatibility
+
+        saved = self.config.get("env_signature")
+        if saved is None:
+            print(f"warning: {self.path} has no env_signature in its {CONFIG_FILE}: only the "
+                  "observation and action shapes are checked", file=sys.stderr)
+        else:
+            try:
+                check_model_compatibility(saved, env, ignore=tuple(ignore))
+            except ValueError as exc:
+                raise UserError(f"{self.path}: {exc} (retrain, or pass --ignore-signature "
+                                "FIELD to run it anyway)") from None
+        for name in ("observation_space", "action_space"):
+            want, got = getattr(self.model, name).shape, getattr(env, name).shape
+            if want != got:
+                raise UserError(f"{self.path}: the model's {name} has shape {want}, the env's "
+                                f"{got}")
 
     def normalize(self, obs: np.ndarray) -> np.ndarray:
         """Observation as the model saw it in training (VecNormalize, statistics frozen)."""

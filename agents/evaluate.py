@@ -44,8 +44,9 @@ from agents.common import (
     summarize,
     task_targets,
 )
+from softhand_env.envs.signature import SIGNATURE_FIELDS
 
-SCRIPTED = ("paper", "handling", "model-based")
+SCRIPTED = ("paper", "handling", "model-based", "loop-plan")
 
 
 def parse_args(argv: Sequence[str] | None = None) -> argparse.Namespace:
@@ -66,6 +67,8 @@ def parse_args(argv: Sequence[str] | None = None) -> argparse.Namespace:
     p.add_argument("--no-plots", action="store_true", help="skip the PNG and the GIF")
     p.add_argument("--gif-episode", type=int, default=0, help="episode index to animate")
     p.add_argument("--gif-size", type=int, default=240, help="GIF frame size (px)")
+    p.add_argument("--ignore-signature", nargs="+", default=[], metavar="FIELD",
+                   help="model: env-signature fields not to check (e.g. version)")
     p.add_argument("--device", default="cpu")
     p.add_argument("--torch-threads", type=int, default=1)
     return p.parse_args(argv)
@@ -83,18 +86,24 @@ def build(args: argparse.Namespace) -> tuple[Any, str, dict[str, Any], Any, str]
     else:
         from agents.scripted import HandlingProcessPolicy, ModelBasedPolicy, PaperSequencePolicy
 
-        env_id = args.env or ("SoftHand-v0" if args.policy != "model-based" else None)
+        goal_policy = args.policy in ("model-based", "loop-plan")
+        env_id = args.env or (None if goal_policy else "SoftHand-v0")
         if env_id is None:
-            raise UserError("--policy model-based needs --env (a goal task)")
+            raise UserError(f"--policy {args.policy} needs --env (a goal task)")
         if args.policy == "paper":
             policy = PaperSequencePolicy()
         elif args.policy == "handling":
             policy = HandlingProcessPolicy(args.grasp_deg)
         else:
+            from agents.residual import LoopPlanPolicy
+
+            if args.policy == "loop-plan" and task_targets(env_id) != ("x", "theta"):
+                raise UserError(f"--policy loop-plan needs SoftHandPose-v0, not {env_id}")
             if not task_targets(env_id):
-                raise UserError(f"--policy model-based needs a goal task, not {env_id}")
-            probe = make_env(env_id, ModelBasedPolicy.env_kwargs)
-            policy = ModelBasedPolicy.from_env(probe)
+                raise UserError(f"--policy {args.policy} needs a goal task, not {env_id}")
+            cls = ModelBasedPolicy if args.policy == "model-based" else LoopPlanPolicy
+            probe = make_env(env_id, cls.env_kwargs)
+            policy = cls.from_env(probe)
             probe.close()
         kwargs, wrapper = dict(policy.env_kwargs), None
         if policy.episode_steps is not None:
@@ -250,6 +259,10 @@ def main(argv: Sequence[str] | None = None) -> dict[str, float]:
         raise UserError("--n-episodes must be >= 1")
     if not 0 <= args.gif_episode < args.n_episodes:
         raise UserError("--gif-episode must index one of the episodes")
+    unknown = sorted(set(args.ignore_signature) - set(SIGNATURE_FIELDS))
+    if unknown:
+        raise UserError(f"--ignore-signature: unknown field(s) {', '.join(unknown)}; fields: "
+                        + ", ".join(SIGNATURE_FIELDS))
     import torch
 
     torch.set_num_threads(args.torch_threads)
@@ -257,7 +270,7 @@ def main(argv: Sequence[str] | None = None) -> dict[str, float]:
     targets = task_targets(env_id)
     env = make_env(env_id, kwargs, wrapper)
     if isinstance(policy, ModelPolicy):
-        policy.check_env(env)
+        policy.check_env(env, args.ignore_signature)
     seeds = goal_seeds(args.seed, args.n_episodes)
     summary, episodes = evaluate(env, policy, seeds, targets, not args.stochastic)
     title = f"{env_id}, {name} policy, {args.n_episodes} goals from seed {args.seed}"

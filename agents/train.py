@@ -60,6 +60,7 @@ from agents.common import (
     task_targets,
     versions,
 )
+from softhand_env.envs.signature import env_signature
 
 
 def parse_args(argv: Sequence[str] | None = None) -> argparse.Namespace:
@@ -274,7 +275,9 @@ def main(argv: Sequence[str] | None = None) -> Path:
     config = resolve_config(args)
     hp = config["hyperparams"]
     algo_kwargs(args.algo, hp)  # validate everything before creating the run directory
-    make_env(args.env, hp["env_kwargs"], hp.get("env_wrapper")).close()
+    probe = make_env(args.env, hp["env_kwargs"], hp.get("env_wrapper"))
+    config["env_signature"] = env_signature(probe)  # checked when the model is loaded
+    probe.close()
     run_dir = next_run_dir(Path(args.log_folder), args.algo, args.env, args.run_name)
     run_dir.mkdir(parents=True, exist_ok=True)
     save_config(config, run_dir)

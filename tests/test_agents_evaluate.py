@@ -16,12 +16,16 @@ from agents import common, evaluate
 ROOT = Path(__file__).resolve().parent.parent
 MODELS = ROOT / "agents" / "models"
 
-#: Shipped model -> lowest success rate accepted on 10 test goals (seeds 10000-10009).
-#: The full 100-goal figures are in agents/models/<env>/results.yml; margins explained there.
+#: Shipped model -> lowest success rate accepted on the first 10 test goals (seeds
+#: 10000-10009). Measured on these 10: 10/10 for all three (on all 100 test goals: Translate
+#: 100 %, Reorient 100 %, Pose 94 %; agents/models/<env>/results.yml). Evaluation is
+#: deterministic, so the margin only covers platform round-off flipping a goal that ends near
+#: the tolerance (Pose goal 10007 ends 0.87 mm off): one goal for the single-coordinate tasks,
+#: two for Pose.
 SHIPPED = {
     "SoftHandTranslate-v0": 0.9,
     "SoftHandReorient-v0": 0.9,
-    "SoftHandPose-v0": 0.6,
+    "SoftHandPose-v0": 0.8,
 }
 
 
@@ -117,6 +121,67 @@ def test_model_on_the_wrong_env(capsys):
         pytest.skip("no shipped Translate model")
     _expect_error(capsys, ["--model", str(MODELS / "SoftHandTranslate-v0"),
                            "--env", "SoftHandPose-v0"], "trained on SoftHandTranslate-v0")
+
+
+def _shipped_copy(tmp_path, env_id="SoftHandTranslate-v0"):
+    """A writable copy of a shipped model directory and its parsed config."""
+    src = MODELS / env_id
+    if not (src / "model.zip").exists():
+        pytest.skip(f"no shipped {env_id} model")
+    dst = tmp_path / env_id
+    shutil.copytree(src, dst)
+    return dst, yaml.safe_load((dst / "config.yml").read_text())
+
+
+def test_shipped_models_carry_the_signature_of_their_env():
+    for cfg_path in MODELS.glob("*/config.yml"):
+        config = yaml.safe_load(cfg_path.read_text())
+        policy = common.ModelPolicy(cfg_path.parent)
+        hp = config["hyperparams"]
+        policy.check_env(common.make_env(config["env_id"], hp["env_kwargs"],
+                                         hp.get("env_wrapper")))
+
+
+@pytest.mark.parametrize(
+    "field,value,fragment",
+    [
+        # a model from another package version (the env may have changed under it)
+        ("version", "0.0.1", "version (model '0.0.1', env "),
+        # a model trained on two-frame observations: same env id, other layout
+        ("history_len", 2, "history_len (model 2, env 1)"),
+        ("observation_shape", [18], "observation_shape (model [18], env [9])"),
+        ("action_mode", "absolute", "action_mode (model 'absolute', env 'delta')"),
+    ],
+)
+def test_model_whose_env_signature_differs_is_refused(capsys, tmp_path, field, value, fragment):
+    run, config = _shipped_copy(tmp_path)
+    config["env_signature"][field] = value
+    (run / "config.yml").write_text(yaml.safe_dump(config, sort_keys=False))
+    _expect_error(capsys, ["--model", str(run), "--n-episodes", "1", "--no-plots",
+                           "--out", str(tmp_path / "out")], fragment)
+
+
+def test_signature_field_can_be_ignored_on_purpose(capsys, tmp_path):
+    run, config = _shipped_copy(tmp_path)
+    config["env_signature"]["version"] = "0.0.1"
+    (run / "config.yml").write_text(yaml.safe_dump(config, sort_keys=False))
+    argv = ["--model", str(run), "--n-episodes", "1", "--no-plots", "--out", str(tmp_path / "o")]
+    evaluate.main([*argv, "--ignore-signature", "version"])
+    _expect_error(capsys, [*argv, "--ignore-signature", "colour"], "unknown field(s) colour")
+
+
+def test_model_without_signature_is_shape_checked_with_a_warning(capsys, tmp_path):
+    run, config = _shipped_copy(tmp_path)
+    del config["env_signature"]
+    config["hyperparams"]["env_kwargs"]["history_len"] = 2  # the shape check still catches it
+    (run / "config.yml").write_text(yaml.safe_dump(config, sort_keys=False))
+    with pytest.raises(SystemExit) as exc:
+        common.run_cli(evaluate.main, ["--model", str(run), "--n-episodes", "1", "--no-plots"])
+    assert exc.value.code == 2
+    warning, error = capsys.readouterr().err.splitlines()
+    assert warning.startswith("warning: ") and "no env_signature" in warning
+    assert error.startswith("error: ")
+    assert "observation_space has shape (9,), the env's (17,)" in error
 
 
 @pytest.mark.parametrize(

@@ -52,9 +52,18 @@ def test_training_cli_smoke_run_writes_model_stats_config_and_tensorboard(tmp_pa
     assert {"stable-baselines3", "torch", "gymnasium"} <= set(config["versions"])
     assert config["eval"]["success_kwargs"] == {"x_tolerance_mm": 1.0}
     assert 0.0 <= config["best_validation"]["success_rate"] <= 1.0
+    # the env signature is saved with the run and checked when the model is loaded
+    sig = config["env_signature"]
+    assert sig["env_id"] == "SoftHandTranslate-v0" and sig["observation_shape"] == [9]
+    assert sig["action_mode"] == "delta" and sig["obs_mode"] == "proprio"
     # the saved run loads and acts on the env it was trained on
     policy = common.ModelPolicy(run)
     env = common.make_env("SoftHandTranslate-v0", policy.env_kwargs)
+    policy.check_env(env)
+    mismatch = r"obs_mode \(model 'proprio', env 'proprio_tactile'"
+    with pytest.raises(common.UserError, match=mismatch):
+        policy.check_env(common.make_env("SoftHandTranslate-v0",
+                                         {**policy.env_kwargs, "obs_mode": "proprio_tactile"}))
     obs, _ = env.reset(seed=0)
     action, _ = policy.predict(obs)
     assert env.action_space.contains(np.asarray(action, dtype=np.float32))
@@ -142,3 +151,63 @@ def test_error_exit_in_a_subprocess_has_no_traceback(tmp_path):
     assert proc.returncode == 2
     assert "Traceback" not in proc.stderr
     assert proc.stderr.strip().count("\n") == 0 and "unknown env id" in proc.stderr
+
+
+# ---------------------------------------------------------------- residual Pose wrapper
+def _pose_env(steps: int = 400):
+    from agents.scripted import ABSOLUTE_RAD
+
+    return common.make_env("SoftHandPose-v0", {**ABSOLUTE_RAD, "max_episode_steps": steps})
+
+
+def test_loop_plan_has_bounded_steps_loops_then_translation():
+    from agents.residual import LoopPlanPolicy
+
+    plan = LoopPlanPolicy.from_env(_pose_env())
+    corners = plan.corners(5.0, -6.0)
+    # residual roll -6 - 0.77 * 5 = -9.85 deg -> ceil(9.85 / (0.29 * 12)) = 3 equal loops
+    assert len(corners) == 1 + 3 * 4 + 1
+    sp = np.degrees(plan.plan(5.0, -6.0))
+    assert np.max(np.abs(np.diff(sp, axis=0))) <= 1.0 + 1e-9
+    np.testing.assert_allclose(sp[0], [6.0, 6.0])
+    np.testing.assert_allclose(sp[-1], [6.0 - 5.0 / 1.34, 6.0 + 5.0 / 1.34])
+    # a negative roll needs loops with b = 9.85 / (0.29 * 3) = +11.3 deg, squeezed open by 4 deg
+    phi = (sp[:, 0] - sp[:, 1]) / 2
+    assert np.max(phi) == pytest.approx(9.85 / (0.29 * 3))
+    assert np.min(sp.sum(axis=1)) == pytest.approx(2 * (6.0 - 4.0))
+    # no residual (theta* on the coupled line): straight translation only
+    assert len(plan.corners(5.0, 0.77 * 5.0)) == 2
+
+
+def test_residual_wrapper_with_zero_actions_replays_the_plan():
+    from agents.residual import LoopPlanPolicy, ResidualWrapper
+
+    raw, wrapped = _pose_env(60), ResidualWrapper(_pose_env(60))
+    plan = LoopPlanPolicy.from_env(raw)
+    obs, info = raw.reset(seed=11)
+    wobs, winfo = wrapped.reset(seed=11)
+    assert wobs.shape == wrapped.observation_space.shape == (raw.observation_space.shape[0] + 5,)
+    np.testing.assert_array_equal(wobs[: obs.size], obs)
+    state, start = None, np.array([True])
+    while True:
+        action, state = plan.predict(obs, state, start)
+        start = np.array([False])
+        obs, _, term, trunc, info = raw.step(action)
+        wobs, _, wterm, wtrunc, winfo = wrapped.step(np.zeros(2))
+        np.testing.assert_array_equal(info["object_pose"], winfo["object_pose"])
+        assert (term, trunc) == (wterm, wtrunc)
+        if term or trunc:
+            break
+    assert wobs[-1] == 0.0 and np.all(wobs[-5:-3] == 0.0)  # time up, offset untouched
+
+
+def test_residual_wrapper_offsets_are_bounded_and_it_needs_absolute_actions():
+    from agents.residual import ResidualWrapper
+
+    wrapped = ResidualWrapper(_pose_env(30), delta_deg=0.5, max_offset_deg=2.0)
+    wrapped.reset(seed=0)
+    for _ in range(10):
+        obs, *_ = wrapped.step(np.array([1.0, -1.0]))
+    np.testing.assert_allclose(obs[-5:-3], [1.0, -1.0])  # 2 deg cap reached after 4 steps
+    with pytest.raises(ValueError, match="absolute"):
+        ResidualWrapper(common.make_env("SoftHandPose-v0"))

@@ -3,9 +3,12 @@
 A policy trained on one observation layout silently does the wrong thing on another (a
 ``history_len=2`` model fed single frames, a ``proprio`` model fed tactile entries, a delta
 policy driving absolute set-points). :func:`env_signature` describes what a model depends on;
-the training CLI saves it next to the model (:func:`save_env_signature`, or as the model's
-``env_signature`` attribute, which Stable-Baselines3 stores in its zip) and the evaluator checks
-it with :func:`check_model_compatibility` before the first step.
+``python -m agents.train`` stores it as ``env_signature`` in the run's ``config.yml`` and
+``agents.evaluate`` (``ModelPolicy.check_env``) checks it with
+:func:`check_model_compatibility` before the first step, exiting with one line naming every
+differing field. Your own scripts can keep it in a JSON file next to the model
+(:func:`save_env_signature`, :func:`signature_path`) or as the model's ``env_signature``
+attribute (Stable-Baselines3 stores it in its zip).
 
 Signature fields (JSON-friendly; :data:`SIGNATURE_FIELDS`):
 
