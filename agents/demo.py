@@ -20,10 +20,18 @@ import time
 from collections.abc import Sequence
 from pathlib import Path
 
-from agents.common import ERROR_KEYS, run_cli
+from agents.common import ERROR_KEYS, resolve_model, run_cli
 
 GOAL_ENVS = ("SoftHandReorient-v0", "SoftHandTranslate-v0", "SoftHandPose-v0")
 MODELS = Path(__file__).resolve().parent / "models"
+
+
+def learned_label(model_dir: Path) -> str:
+    """Table label of a shipped model, from its run config (algorithm, residual or not)."""
+    config = resolve_model(model_dir)[2]
+    wrappers = str(config["hyperparams"].get("env_wrapper") or "")
+    residual = ", residual on the loop plan" if "ResidualWrapper" in wrappers else ""
+    return f"learned ({config['algo'].upper()}{residual})"
 
 
 def parse_args(argv: Sequence[str] | None) -> argparse.Namespace:
@@ -76,7 +84,7 @@ def main(argv: Sequence[str] | None = None) -> list[str]:
             print(f"== {env_id}: learned agent ({model})")
             s = evaluate.main(["--model", str(model), *common,
                                "--out", str(out / f"{env_id}_learned")])
-            rows.append(_row(env_id, "learned (PPO)", s))
+            rows.append(_row(env_id, learned_label(model), s))
     summary = "\n".join(rows)
     (out / "summary.md").write_text(
         f"Held-out goals: seeds {args.seed} .. {args.seed + args.n_episodes - 1}; success = "
