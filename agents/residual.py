@@ -33,6 +33,7 @@ import numpy as np
 from gymnasium import spaces
 
 from agents.scripted import ABSOLUTE_RAD, ScriptedPolicy
+from softhand_env.envs.observation import ANGLE_SCALE
 
 
 class LoopPlanPolicy(ScriptedPolicy):
@@ -181,8 +182,6 @@ class ResidualWrapper(gym.Wrapper):
         return self.plan.action(0, self._base_obs, self._t)
 
     def _observe(self, obs: np.ndarray) -> np.ndarray:
-        from softhand_env.envs.observation import ANGLE_SCALE
-
         extra = np.concatenate([
             self._offset / self.max_offset,
             self._planned() / ANGLE_SCALE,

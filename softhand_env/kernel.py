@@ -113,17 +113,23 @@ def _suspect(y, prm):
     """Cheap superset of ``_state_flags(y, prm, 0.0, ...) != 0``: True if some entry of y may
     be non-finite (their sum is not finite; an overflowing sum of finite entries only costs
     the exact check) or a d_n is outside [0, a)."""
-    s0 = y[0] + y[4]
-    s1 = y[1] + y[5]
-    s2 = y[2] + y[6]
-    s3 = y[3] + y[7]
+    return _maybe_fatal(_state_sum(y, 0, 1), y[DN_1], y[DN_1 + 1], prm[P_A])
+
+
+@njit(cache=True, fastmath=False, inline="always")
+def _state_sum(buf, start, stride):
+    """Sum of the NY state entries ``buf[start + j * stride]`` in four partial sums (finite
+    if every entry is; the order lets the compiler keep four independent additions)."""
+    s0 = buf[start] + buf[start + 4 * stride]
+    s1 = buf[start + stride] + buf[start + 5 * stride]
+    s2 = buf[start + 2 * stride] + buf[start + 6 * stride]
+    s3 = buf[start + 3 * stride] + buf[start + 7 * stride]
     for j in range(8, NY, 4):
-        s0 += y[j]
-        s1 += y[j + 1]
-        s2 += y[j + 2]
-        s3 += y[j + 3]
-    total = (s0 + s1) + (s2 + s3)
-    return _maybe_fatal(total, y[DN_1], y[DN_1 + 1], prm[P_A])
+        s0 += buf[start + j * stride]
+        s1 += buf[start + (j + 1) * stride]
+        s2 += buf[start + (j + 2) * stride]
+        s3 += buf[start + (j + 3) * stride]
+    return (s0 + s1) + (s2 + s3)
 
 
 @njit(cache=True, fastmath=False, inline="always")
@@ -322,19 +328,10 @@ def _lanes_suspect(Yl, Pl, CHM, CNM, K1, nl):
         CNM[l] = max(
             CNM[l], max(abs(K1[(_R_RES + 2) * LANES + l]), abs(K1[(_R_RES + 3) * LANES + l]))
         )
-        # as _suspect: the state sum is finite if every entry is (four partial sums)
-        s0 = Yl[0 * LANES + l] + Yl[4 * LANES + l]
-        s1 = Yl[1 * LANES + l] + Yl[5 * LANES + l]
-        s2 = Yl[2 * LANES + l] + Yl[6 * LANES + l]
-        s3 = Yl[3 * LANES + l] + Yl[7 * LANES + l]
-        for j in range(8, NY, 4):
-            s0 += Yl[j * LANES + l]
-            s1 += Yl[(j + 1) * LANES + l]
-            s2 += Yl[(j + 2) * LANES + l]
-            s3 += Yl[(j + 3) * LANES + l]
-        total = (s0 + s1) + (s2 + s3)
+        # as _suspect, on lane l of the structure-of-arrays block
         bad = _maybe_fatal(
-            total, Yl[DN_1 * LANES + l], Yl[(DN_1 + 1) * LANES + l], Pl[P_A * LANES + l]
+            _state_sum(Yl, l, LANES),
+            Yl[DN_1 * LANES + l], Yl[(DN_1 + 1) * LANES + l], Pl[P_A * LANES + l],
         )
         count += 1 if bad else 0
     return count

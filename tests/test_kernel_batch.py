@@ -55,13 +55,17 @@ def random_batch(N: int, seed: int):
     return Y, U, PRM
 
 
+def _outputs(Y, FLAGS_IN):
+    """Fresh copies of the state and input flags, and a DIAG of -1 (untouched marker)."""
+    N = Y.shape[0]
+    FLAGS = np.zeros(N, dtype=np.int64) if FLAGS_IN is None else FLAGS_IN.copy()
+    return Y.copy(), np.full((N, 2), -1.0), FLAGS
+
+
 def run_single(Y, U, PRM, n, FLAGS_IN=None, ch_limit=CH_LIMIT):
     """What advance_batch must produce, from kernel.advance system by system."""
-    Y = Y.copy()
-    N = Y.shape[0]
-    DIAG = np.full((N, 2), -1.0)
-    FLAGS = np.zeros(N, dtype=np.int64) if FLAGS_IN is None else FLAGS_IN.copy()
-    for s in range(N):
+    Y, DIAG, FLAGS = _outputs(Y, FLAGS_IN)
+    for s in range(Y.shape[0]):
         if FLAGS[s] & (kernel.FATAL_FLAGS | kernel.FLAG_SKIP):
             continue
         d = np.zeros(2)
@@ -71,10 +75,7 @@ def run_single(Y, U, PRM, n, FLAGS_IN=None, ch_limit=CH_LIMIT):
 
 
 def run_batch(Y, U, PRM, n, FLAGS_IN=None, ch_limit=CH_LIMIT):
-    Y = Y.copy()
-    N = Y.shape[0]
-    DIAG = np.full((N, 2), -1.0)
-    FLAGS = np.zeros(N, dtype=np.int64) if FLAGS_IN is None else FLAGS_IN.copy()
+    Y, DIAG, FLAGS = _outputs(Y, FLAGS_IN)
     kernel.advance_batch(Y, U, PRM, n, ch_limit, DIAG, FLAGS)
     return Y, DIAG, FLAGS
 
