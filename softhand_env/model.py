@@ -2,7 +2,7 @@
 
 State and coordinates
 ---------------------
-Generalized coordinates (Eq 5.15, order fixed by DESIGN.md), SI units::
+Generalized coordinates (Eq 5.15, order fixed in docs/design.md), SI units::
 
     q = [x_obj, y_obj, theta_obj, theta_1, theta_2, d_n1, d_n2, d_t1, d_t2]   (m, m, rad, rad,
                                                                                rad, m, m, m, m)
@@ -15,7 +15,7 @@ the packed float64 vector of :func:`pack_params` (shape ``(N_PARAMS,)``).
 Physics (derived here, not transcribed from the OCR-damaged Eqs 5.31-5.41)
 ------------------------------------------------------------------------
 * Fingertip centres O_i (Eqs 5.7-5.8); contact angle theta_pi = theta_i + (-1)^i theta_obj.
-* Elastic energy (Eq 5.5) with the cross-term sign s_i of DESIGN.md (default -1 for both
+* Elastic energy (Eq 5.5) with the cross-term sign s_i of docs/design.md (default -1 for both
   fingers, ``cross_term="printed"`` gives (-1)^i) and a bending factor ``k_b`` (1 = Eq 5.5)::
 
       P = pi E sum_i [ d_ni^3 / (3 cos^2 theta_pi) + s_i d_ni^2 d_ti tan theta_pi
@@ -23,7 +23,7 @@ Physics (derived here, not transcribed from the OCR-damaged Eqs 5.31-5.41)
 
   plus gravity P_gv = M_obj g y_obj; viscous forces -c_n dd_ni/dt, -c_t dd_ti/dt.
   Generalized forces are -grad(P + P_gv) (tested against finite differences).
-* Holonomic normal constraints (Eq 5.9 with the sign fix of DESIGN.md, w = 0)::
+* Holonomic normal constraints (Eq 5.9 with the sign fix of docs/design.md, w = 0)::
 
       C_i^H = (-1)^i [(x - O_ix) cos theta_obj + (y - O_iy) sin theta_obj] - (a - d_ni) - W_obj/2
 
@@ -228,7 +228,7 @@ def _finger(y, prm, i, co, so):
     vrx = vx - Ox1 * wi
     vry = vy - Oy1 * wi
     rho = prm[P_A] - dn
-    # holonomic constraint (Eq 5.9 with the sign fix of DESIGN.md)
+    # holonomic constraint (Eq 5.9 with the sign fix of docs/design.md)
     A = sgn * (-rx * so + ry * co)
     B = sgn * (-Ox1 * co - Oy1 * so)
     CH = sgn * (rx * co + ry * so) - rho - 0.5 * prm[P_WOBJ]

@@ -143,7 +143,7 @@ def test_default_model_is_mirror_symmetric(a_deg, b_deg):
 
 
 def test_printed_cross_term_sign_breaks_the_symmetry():
-    """DESIGN.md: with the printed (-1)^i sign, set-points (6, 6) tilt the object."""
+    """docs/design.md: with the printed (-1)^i sign, set-points (6, 6) tilt the object."""
     printed = PARAMS.replace(cross_term="printed")
     y = run_setpoint_sequence(np.radians([[6, 6]]), printed, duration=0.5).y[-1]
     assert abs(math.degrees(y[model.TH_OBJ])) > 0.1
