@@ -409,3 +409,10 @@ class SoftHandEnv(gym.Env):
         state = self.__dict__.copy()
         state["_viewer"] = None  # a window does not pickle; it reopens on the next render
         return state
+
+    def get_keys_to_action(self) -> dict[tuple[str, ...], np.ndarray]:
+        """Keyboard map for teleoperation (``gymnasium.utils.play``, ``python -m
+        softhand_env.play``): key tuples -> delta actions; see :mod:`softhand_env.envs.keys`."""
+        from softhand_env.envs.keys import keys_to_action
+
+        return keys_to_action(self.config.actions.mode)
