@@ -3,7 +3,9 @@
 ``python -m softhand_env.figures contact --out DIR`` writes four PNGs to ``DIR`` (created):
 
 * ``fig2_6_stiffness.png`` -- K of Eq 2.3 (numerical) vs Eq 2.7 (closed form) over d for
-  several theta_p, E = 0.2032 MPa;
+  four theta_p, E = 0.2032 MPa. K does not depend on theta_p, so the four series coincide;
+  their markers are staggered in d and a second panel shows each series' relative
+  difference from the closed form (round-off);
 * ``fig2_7_force_energy.png`` -- F (Eq 2.8 vs 2.11) and P (Eq 2.12 vs 2.14);
 * ``fig2_11_force_vs_angle.png`` -- F over theta_p for d = 1..8 mm: local minimum at 0;
 * ``fig3_3_nonlinear_force.png`` -- theta_p = 0, E = 0.232 MPa: linear Eq 2.11, Eq 3.5 as
@@ -49,7 +51,7 @@ def run(args: argparse.Namespace) -> list[Path]:
     }
     written = []
     for name, draw in drawers.items():
-        fig = _new_figure(ncols=2 if draw is _fig_2_7 else 1)
+        fig = _new_figure(ncols=2 if draw in (_fig_2_6, _fig_2_7) else 1)
         draw(fig)
         fig.text(0.5, 0.01, NO_DATA_NOTE, ha="center", va="bottom", fontsize=8, style="italic")
         fig.tight_layout(rect=(0, 0.04, 1, 1))
@@ -94,16 +96,42 @@ def _numeric_vs_closed(ax, numeric, closed, scale: float, ylabel: str) -> None:
 
 
 def _fig_2_6(fig) -> None:
+    """K over d for four theta_p. K = 2 pi E d does not depend on theta_p, so the four
+    closed-form lines are one line and the numerical values sit on it: the markers of each
+    theta_p are drawn at staggered d so that all four series show, and the right panel plots
+    each series' relative difference from the closed form (round-off: a few 1e-15)."""
     E = contact.E_CH2
-    (ax,) = fig.axes
-    _numeric_vs_closed(
-        ax,
-        lambda d, th: contact.stiffness_numeric(d, th, E, A),
-        lambda d, th: contact.stiffness(d, E) + 0 * th,
-        1e-3,
-        "stiffness K [N/mm]",
+    ax_k, ax_err = fig.axes
+    d_line = np.linspace(0.0, 8.0, 161) * MM
+    ax_k.plot(d_line / MM, contact.stiffness(d_line, E) * 1e-3, color="k", lw=1.2,
+              label=r"Eq 2.7 closed form, $K = 2\pi E d$ (every $\theta_p$)")
+    stagger = 0.5 / len(ANGLES_DEG)
+    d_err = np.linspace(0.5, 8.0, 31) * MM
+    for k, deg in enumerate(ANGLES_DEG):
+        colour, marker = f"C{k}", MARKERS[k]
+        d_mark = (np.arange(0.5, 8.0, 0.5) + k * stagger) * MM
+        label = rf"Eq 2.3 numerical, $\theta_p = {deg:g}^\circ$"
+        ax_k.plot(d_mark / MM, contact.stiffness_numeric(d_mark, deg * DEG, E, A) * 1e-3,
+                  marker, mfc="none", color=colour, label=label)
+        closed = contact.stiffness(d_err, E)
+        rel = (contact.stiffness_numeric(d_err, deg * DEG, E, A) - closed) / closed
+        ax_err.plot(d_err / MM, rel / 1e-15, marker, ls=("-", "--", "-.", ":")[k], ms=4,
+                    mfc="none", color=colour, lw=1.0, label=rf"$\theta_p = {deg:g}^\circ$")
+    ax_k.set_xlabel("maximum displacement d [mm]")
+    ax_k.set_ylabel("stiffness K [N/mm]")
+    ax_k.grid(alpha=0.3)
+    ax_k.legend(fontsize=8)
+    ax_k.set_title(
+        "Fig 2.6: K over d, E = 0.2032 MPa, a = 20 mm\n"
+        r"the $\theta_p$ series coincide ($K$ does not depend on $\theta_p$); markers staggered",
+        fontsize=9,
     )
-    ax.set_title("Fig 2.6: K, Eq 2.3 (numerical) vs Eq 2.7; E = 0.2032 MPa, a = 20 mm", fontsize=9)
+    ax_err.axhline(0.0, color="0.5", lw=0.8)
+    ax_err.set_xlabel("maximum displacement d [mm]")
+    ax_err.set_ylabel(r"(numerical $-$ closed) / closed  [$10^{-15}$]")
+    ax_err.grid(alpha=0.3)
+    ax_err.legend(fontsize=8)
+    ax_err.set_title("relative difference of each series: round-off only", fontsize=9)
 
 
 def _fig_2_7(fig) -> None:

@@ -5,7 +5,8 @@ pairs of §5.5.1 (each held ``--duration`` seconds; the paper gives no duration)
 
 * ``fig5_5_motion.png``: finger angles with their set-points, x_obj, y_obj, theta_obj and the
   fingertip deformations d_n, d_t versus time (Fig 5.5),
-* ``fig5_6_constraints.png``: |C^H_i| (m) and |C^N_i| (m/s) on log axes (Fig 5.6),
+* ``fig5_6_constraints.png``: |C^H_i| (m) and |C^N_i| (m/s) on log axes (Fig 5.6), values
+  below the round-off level :data:`ROUNDOFF_FLOOR` drawn on it, the paper's levels dashed,
 * ``trajectory.csv``: the recorded states (SI units, header names every column).
 """
 
@@ -29,6 +30,13 @@ from softhand_env.model import (
 )
 from softhand_env.params import load_hand_params
 
+#: Round-off level of the residuals (m and m/s): double-precision epsilon times the hand's size
+#: (~0.1 m) is ~2e-17, and at rest the residuals alternate between that and exactly 0. Values
+#: below this floor are drawn on it, so the plot shows a line there, not a solid band.
+ROUNDOFF_FLOOR = 1e-16
+#: Levels the dissertation's Fig 5.6 reports away from the switching instants (m, m/s).
+PAPER_LEVEL_CH, PAPER_LEVEL_CN = 1e-8, 1e-6
+
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--duration", type=float, default=1.0, help="seconds per motion (1.0)")
@@ -43,6 +51,42 @@ def per_finger_residuals(y: np.ndarray, prm: np.ndarray) -> np.ndarray:
         constraint_residuals(np.ascontiguousarray(row), prm, buf)
         out[k] = np.abs(buf)
     return out
+
+
+def constraint_figure(t: np.ndarray, res: np.ndarray):
+    """Fig 5.6: the residuals ``res`` (K, 4) of :func:`per_finger_residuals` over ``t`` (K,) s.
+
+    Log axes; values at or below :data:`ROUNDOFF_FLOOR` are drawn on it (a grey band marks the
+    round-off region) and the dissertation's reported levels are dashed. Returns a matplotlib
+    ``Figure`` (Agg canvas, not registered with pyplot).
+    """
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+
+    fig = Figure(figsize=(11, 6))
+    FigureCanvasAgg(fig)
+    axes = fig.subplots(2, 2, sharex=True)
+    labels = [r"$|C^H_1|$ (m)", r"$|C^H_2|$ (m)", r"$|C^N_1|$ (m/s)", r"$|C^N_2|$ (m/s)"]
+    for k, ax in enumerate(axes.T.flat):
+        holonomic = k < 2
+        shown = np.maximum(res[:, k], ROUNDOFF_FLOOR)
+        ax.semilogy(t, shown, lw=0.9)
+        ax.axhspan(ROUNDOFF_FLOOR / 10, ROUNDOFF_FLOOR, color="0.9", zorder=0)
+        paper = PAPER_LEVEL_CH if holonomic else PAPER_LEVEL_CN
+        ax.axhline(paper, color="C3", ls="--", lw=0.8)
+        ax.text(0.01, paper * 1.5, f"paper's level, {paper:.0e}", color="C3", fontsize=7,
+                va="bottom", transform=ax.get_yaxis_transform())
+        ax.set_ylim(ROUNDOFF_FLOOR / 10, paper * 100)
+        ax.set(ylabel=labels[k], title=f"({'abcd'[k]})")
+    for ax in axes[1]:
+        ax.set_xlabel("time (s)")
+    fig.suptitle(
+        r"Fig 5.6 equivalent: constraint residuals under CSM ($\alpha$ = 2e4, $\beta$ = 1e4)"
+        f"\nvalues at or below the round-off level {ROUNDOFF_FLOOR:.0e} drawn on it (grey band)",
+        fontsize=11,
+    )
+    fig.tight_layout()
+    return fig
 
 
 def run(args: argparse.Namespace) -> list[Path]:
@@ -99,17 +143,8 @@ def run(args: argparse.Namespace) -> list[Path]:
     written.append(path)
 
     res = per_finger_residuals(y, pack_params(params))
-    fig, axes = plt.subplots(2, 2, figsize=(11, 6), sharex=True)
-    labels = [r"$|C^H_1|$ (m)", r"$|C^H_2|$ (m)", r"$|C^N_1|$ (m/s)", r"$|C^N_2|$ (m/s)"]
-    for k, ax in enumerate(axes.T.flat):
-        ax.semilogy(t[1:], np.maximum(res[1:, k], 1e-20))
-        ax.set(ylabel=labels[k], title=f"({'abcd'[k]})")
-    for ax in axes[1]:
-        ax.set_xlabel("time (s)")
-    fig.suptitle("Fig 5.6 equivalent: constraint residuals under CSM (alpha = 2e4, beta = 1e4)")
-    fig.tight_layout()
+    fig = constraint_figure(t[1:], res[1:])
     path = out / "fig5_6_constraints.png"
     fig.savefig(path, dpi=110)
-    plt.close(fig)
     written.append(path)
     return written
