@@ -18,13 +18,13 @@ scripted policy with the keywords it declares (``env_kwargs``, ``episode_steps``
 Prints a table (success rate, final |x| and |theta| errors, return, episode length) and writes
 to ``--out`` (default ``logs/eval/<env>_<policy>``): ``results.yml`` (summary and every
 episode), ``trajectories.png`` (object x, theta and set-points over time) and ``episode.gif``
-(the ``--gif-episode`` episode rendered from ``render_mode="rgb_array"`` frames).
+(the ``--gif-episode`` episode, by default the successful one in which the object moves most,
+rendered from ``render_mode="rgb_array"`` frames with the time, goal and object pose drawn on).
 """
 
 from __future__ import annotations
 
 import argparse
-import math
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
@@ -45,6 +45,12 @@ from agents.common import (
     task_targets,
 )
 from softhand_env.envs.signature import SIGNATURE_FIELDS
+from softhand_env.figures.episodes import (
+    choose_episode,
+    evaluation_title,
+    gif_frames,
+    plot_episodes,
+)
 
 SCRIPTED = ("paper", "handling", "model-based", "loop-plan")
 
@@ -65,7 +71,9 @@ def parse_args(argv: Sequence[str] | None = None) -> argparse.Namespace:
     p.add_argument("--stochastic", action="store_true", help="sample model actions")
     p.add_argument("--out", default=None, help="output directory")
     p.add_argument("--no-plots", action="store_true", help="skip the PNG and the GIF")
-    p.add_argument("--gif-episode", type=int, default=0, help="episode index to animate")
+    p.add_argument("--gif-episode", type=int, default=None,
+                   help="episode index to animate (default: the successful episode in which "
+                        "the object moves most)")
     p.add_argument("--gif-size", type=int, default=240, help="GIF frame size (px)")
     p.add_argument("--ignore-signature", nargs="+", default=[], metavar="FIELD",
                    help="model: env-signature fields not to check (e.g. version)")
@@ -194,62 +202,20 @@ def format_table(title: str, summary: dict[str, float], targets: Sequence[str]) 
     return "\n".join(lines)
 
 
-def plot_trajectories(path: Path, episodes: list[dict[str, Any]], targets: Sequence[str],
-                      dt: float, title: str, highlight: int = 0, n_max: int = 10) -> None:
-    """Object x and theta of up to ``n_max`` episodes (goals dashed); the set-points of episode
-    ``highlight`` over time and as a path in finger-angle space (rolling loops show there)."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    fig, axes = plt.subplots(1, 4, figsize=(16, 3.8))
-    shown = episodes[:n_max]
-    for k, ep in enumerate(shown):
-        t = np.arange(len(ep["pose"])) * dt
-        color = f"C{k % 10}"
-        axes[0].plot(t, ep["pose"][:, 0] * 1e3, color=color, lw=1)
-        axes[1].plot(t, np.degrees(ep["pose"][:, 2]), color=color, lw=1)
-        for name, g in zip(targets, ep["goal"], strict=True):
-            ax, val = (axes[0], g * 1e3) if name == "x" else (axes[1], math.degrees(g))
-            ax.axhline(val, color=color, ls="--", lw=0.8)
-    ep = episodes[highlight]
-    t = np.arange(len(ep["setpoint"])) * dt
-    axes[2].plot(t, np.degrees(ep["setpoint"][:, 0]), label="theta_1^d")
-    axes[2].plot(t, np.degrees(ep["setpoint"][:, 1]), label="theta_2^d")
-    axes[2].legend(fontsize=8)
-    for ax, label in zip(axes, ("object x (mm)", "object theta (deg)",
-                                f"set-points, episode {highlight} (deg)"), strict=False):
-        ax.set_xlabel("time (s)")
-        ax.set_ylabel(label)
-        ax.grid(alpha=0.3)
-    sp = np.degrees(ep["setpoint"])
-    axes[3].plot(sp[:, 0], sp[:, 1], lw=1)
-    axes[3].plot(sp[0, 0], sp[0, 1], "go", ms=5, label="start")
-    axes[3].plot(sp[-1, 0], sp[-1, 1], "rs", ms=5, label="end")
-    axes[3].set_xlabel("theta_1^d (deg)")
-    axes[3].set_ylabel("theta_2^d (deg)")
-    axes[3].set_title(f"finger-space path, episode {highlight}", fontsize=9)
-    axes[3].legend(fontsize=8)
-    axes[3].grid(alpha=0.3)
-    fig.suptitle(f"{title}: {len(shown)} episodes (goals dashed)")
-    fig.tight_layout()
-    fig.savefig(path, dpi=80)
-    plt.close(fig)
-
-
 def write_gif(path: Path, env_id: str, kwargs: dict[str, Any], wrapper: Any, policy: Any,
               seed: int, size: int, deterministic: bool = True, fps: int = 25) -> None:
-    """Replay one episode with ``render_mode="rgb_array"`` and save it as a GIF (``fps``)."""
+    """Replay one episode with ``render_mode="rgb_array"`` and save it as a GIF (``fps``), the
+    time, goal and object pose drawn on every frame."""
     import imageio.v2 as imageio
 
     env = make_env(env_id, kwargs, wrapper, render_mode="rgb_array", render_width=size,
                    render_height=size)
     frames: list = []
-    run_episode(env, policy, seed, deterministic, frames)
+    ep = run_episode(env, policy, seed, deterministic, frames)
     env.close()
-    stride = max(1, round(1.0 / (fps * env.unwrapped.dt)))
-    imageio.mimsave(path, frames[::stride], duration=1000.0 / fps, loop=0)
+    shown, duration = gif_frames(frames, env.unwrapped.dt, task_targets(env_id), ep["goal"],
+                                 ep["pose"], fps)
+    imageio.mimsave(path, shown, duration=duration, loop=0)
 
 
 def main(argv: Sequence[str] | None = None) -> dict[str, float]:
@@ -257,7 +223,7 @@ def main(argv: Sequence[str] | None = None) -> dict[str, float]:
     args = parse_args(argv)
     if args.n_episodes < 1:
         raise UserError("--n-episodes must be >= 1")
-    if not 0 <= args.gif_episode < args.n_episodes:
+    if args.gif_episode is not None and not 0 <= args.gif_episode < args.n_episodes:
         raise UserError("--gif-episode must index one of the episodes")
     unknown = sorted(set(args.ignore_signature) - set(SIGNATURE_FIELDS))
     if unknown:
@@ -273,7 +239,7 @@ def main(argv: Sequence[str] | None = None) -> dict[str, float]:
         policy.check_env(env, args.ignore_signature)
     seeds = goal_seeds(args.seed, args.n_episodes)
     summary, episodes = evaluate(env, policy, seeds, targets, not args.stochastic)
-    title = f"{env_id}, {name} policy, {args.n_episodes} goals from seed {args.seed}"
+    title = evaluation_title(env_id, name, args.n_episodes, args.seed, targets)
     print(format_table(title, summary, targets))
     out = Path(args.out or f"logs/eval/{env_id}_{name}")
     out.mkdir(parents=True, exist_ok=True)
@@ -290,9 +256,9 @@ def main(argv: Sequence[str] | None = None) -> dict[str, float]:
     with (out / "results.yml").open("w") as fh:
         yaml.safe_dump(record, fh, sort_keys=False)
     if not args.no_plots:
-        plot_trajectories(out / "trajectories.png", episodes, targets, env.unwrapped.dt, title,
-                          args.gif_episode)
-        write_gif(out / "episode.gif", env_id, kwargs, wrapper, policy, seeds[args.gif_episode],
+        shown = choose_episode(episodes) if args.gif_episode is None else args.gif_episode
+        plot_episodes(out / "trajectories.png", episodes, targets, env.unwrapped.dt, title, shown)
+        write_gif(out / "episode.gif", env_id, kwargs, wrapper, policy, seeds[shown],
                   args.gif_size, not args.stochastic)
     env.close()
     print(f"wrote {out}/results.yml" + ("" if args.no_plots else ", trajectories.png, episode.gif"))
