@@ -113,7 +113,7 @@ def run(args: argparse.Namespace) -> list[Path]:
         if bv.any():
             ax.plot(pth.x[bv] * 1e3, pth.y[bv] * 1e3, "x", ms=3, color="C3",
                     label="beyond base")
-        ax.set_ylabel("y_obj (mm)")
+        ax.set_ylabel(r"$y_{obj}$ (mm)")
         ax.set_title(f"grasp {g_deg:.1f} deg: object path", fontsize=9)
         ax.grid(alpha=0.3)
         ax.legend(fontsize=7, loc="lower center")
@@ -124,11 +124,12 @@ def run(args: argparse.Namespace) -> list[Path]:
         if (bv & m).any():
             ax.plot(np.degrees(rotation_angle(pth))[bv & m], np.degrees(pth.theta_obj[bv & m]),
                     "x", ms=3, color="C3")
-        ax.set_ylabel("theta_obj (deg)")
+        ax.set_ylabel(r"$\theta_{obj}$ (deg)")
         ax.set_title(f"grasp {g_deg:.1f} deg: orientation", fontsize=9)
         ax.grid(alpha=0.3)
-    axes[-1, 0].set_xlabel("x_obj (mm)")
-    axes[-1, 1].set_xlabel("finger rotation phi (deg): theta = (g + phi, g - phi)")
+    axes[-1, 0].set_xlabel(r"$x_{obj}$ (mm)")
+    axes[-1, 1].set_xlabel(r"finger rotation $\varphi$ (deg): "
+                           r"$(\theta_1, \theta_2) = (g + \varphi, g - \varphi)$")
     fig.suptitle("Fig 4.8 (simulation): handling process of Sec. 4.3", fontsize=11)
     fig.text(0.5, 0.005, caption, ha="center", va="bottom", fontsize=7, wrap=True)
     fig.tight_layout(rect=(0, 0.04, 1, 0.98))
@@ -145,8 +146,8 @@ def run(args: argparse.Namespace) -> list[Path]:
         ax.axvline(xe, color="gray", ls=":", lw=0.8)
     ax.text(28.0, ax.get_ylim()[1], " +-28 mm (paper, experiment)", fontsize=7, va="top",
             ha="right", color="gray")
-    ax.set_xlabel("x_obj (mm)")
-    ax.set_ylabel("y_obj (mm)")
+    ax.set_xlabel(r"$x_{obj}$ (mm)")
+    ax.set_ylabel(r"$y_{obj}$ (mm)")
     ax.set_title("Fig 4.9 (simulation): object paths for all grasp angles", fontsize=11)
     ax.grid(alpha=0.3)
     ax.legend(fontsize=8)
