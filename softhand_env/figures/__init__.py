@@ -9,7 +9,9 @@ Usage::
 Each subcommand lives in its own module ``softhand_env.figures.<name>`` that defines
 ``add_arguments(parser)`` and ``run(args) -> list[pathlib.Path]`` (the files written).
 Modules are imported lazily so that ``--help`` stays fast and matplotlib is only loaded
-when a figure is drawn.
+when a figure is drawn. Two helper modules are not subcommands: ``overlay`` draws text (time,
+goal, object pose) on rendered frames, ``episodes`` draws evaluated episodes (trajectory plot,
+title, GIF frames) for ``agents.evaluate``.
 """
 
 from __future__ import annotations
