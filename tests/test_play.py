@@ -100,7 +100,12 @@ def test_play_cli_runs_headless_and_validates_options(capsys):
     assert main(["--env", "NoSuchEnv-v0", "--max-frames", "1"]) == 2
 
 
+@pytest.mark.filterwarnings("ignore:.*matplotlib is not installed")
 def test_gymnasium_play_uses_the_env_key_map():
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot  # noqa: F401  (pyplot on Agg: gymnasium's import cannot switch it)
     from gymnasium.utils.play import play
 
     env = gym.make(ENV, render_mode="rgb_array", render_width=120, render_height=120)
@@ -116,4 +121,5 @@ def test_gymnasium_play_uses_the_env_key_map():
     play(env, fps=1000, noop=NOOP, seed=0, callback=callback)
     env.close()
     step = np.degrees(seen[-1] - seen[0])  # steps 2-6 with the key held
+    assert matplotlib.get_backend().lower() == "agg"
     assert step[0] == pytest.approx(5.0, abs=1e-6) and step[1] == pytest.approx(0.0, abs=1e-9)
