@@ -32,7 +32,8 @@ def test_fig_5_6_draws_values_below_round_off_on_the_floor():
     res = np.zeros((200, 4))
     res[::2] = 3e-18  # what the integrator leaves at rest: alternating round-off and exact 0
     res[50] = [1e-9, 2e-9, 1e-7, 2e-7]
-    fig = fig_dynamics.constraint_figure(t, res)
+    fig = fig_dynamics.constraint_figure(t, res, 2e4, 1e4)
+    assert "= 2e+04 1/s" in fig._suptitle.get_text()
     for k, ax in enumerate(fig.axes):
         (curve,) = [ln for ln in ax.get_lines() if len(ln.get_xdata()) == len(t)]
         y = curve.get_ydata()

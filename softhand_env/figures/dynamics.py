@@ -53,8 +53,9 @@ def per_finger_residuals(y: np.ndarray, prm: np.ndarray) -> np.ndarray:
     return out
 
 
-def constraint_figure(t: np.ndarray, res: np.ndarray):
-    """Fig 5.6: the residuals ``res`` (K, 4) of :func:`per_finger_residuals` over ``t`` (K,) s.
+def constraint_figure(t: np.ndarray, res: np.ndarray, alpha: float, beta: float):
+    """Fig 5.6: the residuals ``res`` (K, 4) of :func:`per_finger_residuals` over ``t`` (K,) s
+    under the CSM gains ``alpha``, ``beta`` (1/s, named in the title).
 
     Log axes; values at or below :data:`ROUNDOFF_FLOOR` are drawn on it (a grey band marks the
     round-off region) and the dissertation's reported levels are dashed. Returns a matplotlib
@@ -81,7 +82,8 @@ def constraint_figure(t: np.ndarray, res: np.ndarray):
     for ax in axes[1]:
         ax.set_xlabel("time (s)")
     fig.suptitle(
-        r"Fig 5.6 equivalent: constraint residuals under CSM ($\alpha$ = 2e4, $\beta$ = 1e4)"
+        rf"Fig 5.6 equivalent: constraint residuals under CSM ($\alpha$ = {alpha:.3g} 1/s, "
+        rf"$\beta$ = {beta:.3g} 1/s)"
         f"\nvalues at or below the round-off level {ROUNDOFF_FLOOR:.0e} drawn on it (grey band)",
         fontsize=11,
     )
@@ -143,7 +145,7 @@ def run(args: argparse.Namespace) -> list[Path]:
     written.append(path)
 
     res = per_finger_residuals(y, pack_params(params))
-    fig = constraint_figure(t[1:], res[1:])
+    fig = constraint_figure(t[1:], res[1:], params.alpha, params.beta)
     path = out / "fig5_6_constraints.png"
     fig.savefig(path, dpi=110)
     written.append(path)
