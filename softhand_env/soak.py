@@ -102,8 +102,8 @@ def soak(
             if done.any():
                 counts["episodes"] += int(done.sum())
                 counts["truncations"] += int((truncated & ~terminated).sum())
-                if "termination_reason" in info:
-                    reasons.update(info["termination_reason"][info["_termination_reason"]])
+                ended = info["termination_reason"][terminated]  # None while running
+                reasons.update(r for r in ended if r is not None)
             if progress and time.perf_counter() - last >= report_every:
                 last = time.perf_counter()
                 print(

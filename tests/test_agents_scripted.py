@@ -77,7 +77,7 @@ def test_model_based_baseline_decodes_the_goal_from_the_observation():
     policy = ModelBasedPolicy.from_env(env)
     obs, _ = env.reset(seed=3)
     goal = policy.goal(obs)
-    true_goal = env.unwrapped._goal
+    true_goal = env.unwrapped.goal
     assert goal["x"] == pytest.approx(true_goal[0], rel=1e-6)
     assert goal["theta"] == pytest.approx(true_goal[1], rel=1e-6)
 

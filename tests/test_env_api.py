@@ -19,7 +19,8 @@ import yaml
 
 import softhand_env
 from softhand_env.envs import ENV_IDS, SoftHandEnv
-from softhand_env.envs.tasks import GOAL_TERMS, REASONS
+from softhand_env.envs.tasks import GOAL_TERMS
+from softhand_env.failure import REASONS
 from softhand_env.model import DN_1, DN_2, TH_OBJ, X_OBJ, initial_state
 from softhand_env.params import load_hand_params
 
@@ -349,6 +350,7 @@ def test_info_keys_and_reward_is_sum_of_terms(env_id):
     for key in REQUIRED_INFO + terms:
         assert key in info, key
     assert all(info[t] == 0.0 for t in terms)
+    assert info["termination_reason"] is None
     rng = np.random.default_rng(0)
     for _ in range(30):
         _, reward, terminated, _, info = env.step(rng.uniform(-1, 1, 2).astype(np.float32))
@@ -364,7 +366,7 @@ def test_info_keys_and_reward_is_sum_of_terms(env_id):
             assert info["termination_reason"] in REASONS
             env.reset()
         else:
-            assert "termination_reason" not in info
+            assert info["termination_reason"] is None  # in every info, None while running
 
 
 def test_reward_terms_follow_their_formulas():
@@ -416,14 +418,15 @@ def test_nonfinite_state_rolls_back_and_terminates(monkeypatch):
     env = gym.make("SoftHandReorient-v0").unwrapped
     env.reset(seed=0)
     before = env.physics.get_state()
-    real_step = env.physics.step
+    real_advance = kernel.advance_batch
 
-    def poisoned(setpoint, n_substeps, strict=True):
-        status = real_step(setpoint, n_substeps, strict)
-        env.physics._y[:] = np.nan  # what a blown-up integration leaves behind
-        return type(status)(kernel.FLAG_NONFINITE, status.substeps, status.max_ch, np.nan)
+    def poisoned(Y, U, PRM, n, ch_limit, DIAG, FLAGS):
+        real_advance(Y, U, PRM, n, ch_limit, DIAG, FLAGS)
+        Y[:] = np.nan  # what a blown-up integration leaves behind
+        FLAGS[:] = kernel.FLAG_NONFINITE
+        DIAG[:, 1] = np.nan
 
-    monkeypatch.setattr(env.physics, "step", poisoned)
+    monkeypatch.setattr(kernel, "advance_batch", poisoned)
     obs, reward, terminated, _, info = env.step(np.zeros(2, dtype=np.float32))
     assert terminated and info["termination_reason"] == "nonfinite_state"
     assert np.isfinite(obs).all() and np.isfinite(reward)

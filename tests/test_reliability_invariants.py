@@ -20,7 +20,7 @@ import pytest
 import softhand_env  # noqa: F401  (registers the environments)
 from softhand_env import kernel
 from softhand_env.contact import max_contact_angle
-from softhand_env.envs.tasks import REASONS
+from softhand_env.failure import REASONS
 from softhand_env.model import DN_1, DN_2, TH_1, TH_2, TH_OBJ
 
 REQUIRED_INFO = ("object_pose", "deformation", "constraint_error", "grasped", "is_success")

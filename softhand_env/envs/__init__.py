@@ -17,8 +17,9 @@ from ``configs/tasks/<task>.yaml`` and the vector entry point :class:`SoftHandVe
 imports only Gymnasium and PyYAML; the physics is imported when an environment is made.
 
 Modules: :mod:`.softhand` (the env and its manual), :mod:`.vector` (batched env),
-:mod:`.tasks`, :mod:`.task_configs`, :mod:`.actions`, :mod:`.observation`,
-:mod:`.randomization`, :mod:`.start` (grasp phase), :mod:`.config`, :mod:`.rendering`.
+:mod:`.transition` (the control step both run), :mod:`.tasks`, :mod:`.task_configs`,
+:mod:`.actions`, :mod:`.observation`, :mod:`.randomization`, :mod:`.start` (grasp phase),
+:mod:`.config`, :mod:`.rendering`.
 """
 
 from __future__ import annotations

@@ -53,8 +53,8 @@ class EnvConfig:
     ch_limit : float
         Divergence limit on |C^H| (m).
     base_limit : float
-        1 + ``base_tolerance``: a contact past its fingertip base fails when
-        :func:`~softhand_env.envs.tasks.base_ratio` exceeds this.
+        1 + ``base_tolerance``: a contact past its fingertip base fails when it reaches past
+        the base by more than this (:func:`softhand_env.contact.beyond_base`).
     render_mode : str or None
     render_size : (int, int)
         Frame (width, height) in pixels.

@@ -14,7 +14,6 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from softhand_env.model import DN_1, TH_1, TH_OBJ, X_OBJ, Y_OBJ
 from softhand_env.params import HandParams
 
 BACKGROUND = (246, 245, 240)
@@ -129,15 +128,23 @@ class SceneRenderer:
 
     def frame(
         self,
-        y: np.ndarray,
+        object_pose: np.ndarray,
+        finger_angles: np.ndarray,
+        deformation: np.ndarray,
         setpoint: np.ndarray,
         params: HandParams,
         goal_pose: tuple[float, float] | None = None,
     ) -> np.ndarray:
-        """RGB frame (height, width, 3) uint8 of state ``y`` (20,).
+        """RGB frame (height, width, 3) uint8 of one hand (physics read-outs).
 
         Parameters
         ----------
+        object_pose : ndarray, shape (3,)
+            Object (x, y, theta) (m, m, rad).
+        finger_angles : ndarray, shape (2,)
+            Joint angles (rad).
+        deformation : ndarray, shape (4,)
+            d_n1, d_n2, d_t1, d_t2 (m).
         setpoint : ndarray, shape (2,)
             Set-points (rad), drawn as thin lines.
         goal_pose : (x, theta) or None
@@ -147,14 +154,14 @@ class SceneRenderer:
         r.clear(BACKGROUND)
         L, dfi, a, wfi = params.L, params.d_fi, params.a, params.W_fi
         r.polygon(_rect((0.0, -0.006), wfi + 2 * dfi, 0.006, 0.0), PALM)
-        x, yo, th = y[X_OBJ], y[Y_OBJ], y[TH_OBJ]
+        x, yo, th = (float(v) for v in object_pose)
         half_w, half_h = 0.5 * params.W_obj, 0.5 * OBJECT_ASPECT * params.W_obj
         r.polygon(_rect((x, yo), half_w, half_h, th), OBJECT)
         co, so = math.cos(th), math.sin(th)
         for i in range(2):
             sgn = -1.0 if i == 0 else 1.0  # (-1)^i in the paper's numbering
             root = np.array([-sgn * wfi, 0.0])
-            t = y[TH_1 + i]
+            t = float(finger_angles[i])
             ct, st = math.cos(t), math.sin(t)
             axis = np.array([sgn * st, ct])  # along the finger
             inward = np.array([sgn * ct, -st])  # towards the object
@@ -163,7 +170,7 @@ class SceneRenderer:
                                 tip - dfi * inward, root - dfi * inward]), FINGER)
             centre = tip + dfi * inward  # fingertip centre O_i (Eqs 5.7-5.8)
             n_c = np.array([sgn * co, sgn * so])  # from O_i towards the object's face
-            dn = max(float(y[DN_1 + i]), 0.0)
+            dn = max(float(deformation[i]), 0.0)
             r.disk(centre, a, FINGERTIP, cuts=(((-inward[0], -inward[1]), 0.0),
                                                ((n_c[0], n_c[1]), a - dn)))
             ts = setpoint[i]
