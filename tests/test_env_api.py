@@ -145,12 +145,34 @@ def test_arguments_table_matches_signature():
         assert typ.split()[0] in str(p.annotation), (name, typ, p.annotation)
 
 
+def test_env_options_record_every_keyword_with_its_default():
+    from dataclasses import fields
+
+    from softhand_env.envs.options import EnvOptions
+
+    params = [p for p in inspect.signature(SoftHandEnv.__init__).parameters.values()][1:]
+    assert [(f.name, f.default) for f in fields(EnvOptions)] == [(p.name, p.default)
+                                                                  for p in params]
+    env = gym.make("SoftHandReorient-v0", hand_overrides={"Kp": 12.0}).unwrapped
+    assert env.options.task == "reorient" and env.options.hand_overrides == {"Kp": 12.0}
+    with pytest.raises(TypeError, match="colour"):
+        EnvOptions(colour="red")
+
+
 def test_manual_ids_table_matches_registry():
     rows = re.findall(r"^\s*\| `(\S+-v0)`\s*\| `(\w+)`\s*\|[^|]+\|\s*(\d+) \(",
                       SoftHandEnv.__doc__, flags=re.M)
     assert {r[0] for r in rows} == set(ENV_IDS)
     for env_id, task, steps in rows:
         assert ENV_IDS[env_id] == task and gym.spec(env_id).max_episode_steps == int(steps)
+
+
+def test_reward_threshold_is_registered_for_goal_tasks_only():
+    assert gym.spec("SoftHand-v0").reward_threshold is None
+    for env_id in GOAL_IDS:
+        spec = gym.spec(env_id)
+        task = gym.make(env_id).unwrapped.task
+        assert spec.reward_threshold == spec.max_episode_steps * task.goal_weight > 0
 
 
 def test_manual_has_gymnasium_sections_in_order():

@@ -9,6 +9,7 @@ import numpy as np
 
 from softhand_env.envs.config import RENDER_MODES, build_config
 from softhand_env.envs.observation import observe_rows
+from softhand_env.envs.options import EnvOptions
 from softhand_env.envs.transition import EpisodeBatch
 from softhand_env.physics import HandPhysics
 
@@ -148,7 +149,11 @@ class SoftHandEnv(gym.Env):
     ``deformation`` (d_n1, d_n2, d_t1, d_t2; m), ``constraint_error`` (max |C^H| in m, max
     |C^N| in m/s over the step; at reset: at the start state), ``grasped`` (both d_n > 0, state
     valid), ``is_success``, ``setpoint`` (rad), ``physics_flags`` (kernel status bits), the
-    reward terms (0 at reset), ``goal`` (SI, goal tasks) and ``termination_reason``.
+    reward terms (0 at reset), ``goal`` (SI, goal tasks) and ``termination_reason``: None while
+    the episode runs (at reset, on every step that does not terminate, and on a step that is
+    only truncated), else the failure of the list above or ``"success"``. The native vector
+    env reports the same values batched (``info["termination_reason"]`` an object array with
+    None for the running environments).
 
     ## Arguments
 
@@ -198,7 +203,9 @@ class SoftHandEnv(gym.Env):
 
     ## Version History
 
-    - v0: initial release (chapter-5 model, Table 5.1 parameters).
+    - v0: initial release (chapter-5 model, Table 5.1 parameters); ``termination_reason`` in
+      every ``info`` (None while the episode runs); ``reward_threshold`` registered for the
+      goal tasks (max_episode_steps x goal_weight, see :func:`softhand_env.envs.register_envs`).
     """
 
     metadata = {"render_modes": list(RENDER_MODES), "render_fps": 50}
@@ -244,8 +251,48 @@ class SoftHandEnv(gym.Env):
         render_width: int = 480,
         render_height: int = 480,
     ):
-        kwargs = {k: v for k, v in locals().items() if k not in ("self", "__class__")}
-        cfg = build_config(**kwargs)
+        #: The keywords of this environment (:class:`~softhand_env.envs.options.EnvOptions`).
+        self.options = EnvOptions(
+            task=task,
+            action_mode=action_mode,
+            normalize_action=normalize_action,
+            max_delta_deg=max_delta_deg,
+            joint_range_deg=joint_range_deg,
+            control_dt=control_dt,
+            obs_mode=obs_mode,
+            history_len=history_len,
+            grasp_setpoint_deg=grasp_setpoint_deg,
+            grasp_duration=grasp_duration,
+            reset_noise_deg=reset_noise_deg,
+            hand=hand,
+            hand_overrides=hand_overrides,
+            overcompression_ratio=overcompression_ratio,
+            ch_limit=ch_limit,
+            base_tolerance=base_tolerance,
+            randomize=randomize,
+            rand_width=rand_width,
+            rand_mass=rand_mass,
+            rand_inertia=rand_inertia,
+            rand_stiffness=rand_stiffness,
+            rand_damping=rand_damping,
+            rand_gains=rand_gains,
+            obs_noise=obs_noise,
+            goal_x_range_mm=goal_x_range_mm,
+            goal_theta_range_deg=goal_theta_range_deg,
+            x_tolerance_mm=x_tolerance_mm,
+            theta_tolerance_deg=theta_tolerance_deg,
+            x_scale_mm=x_scale_mm,
+            theta_scale_deg=theta_scale_deg,
+            goal_weight=goal_weight,
+            success_weight=success_weight,
+            ctrl_weight=ctrl_weight,
+            failure_weight=failure_weight,
+            terminate_on_success=terminate_on_success,
+            render_mode=render_mode,
+            render_width=render_width,
+            render_height=render_height,
+        )
+        cfg = build_config(self.options)
         self.config = cfg
         self.task = cfg.task
         self.render_mode = render_mode

@@ -15,7 +15,6 @@ Create it with ``gym.make_vec(id, num_envs=N, vectorization_mode="vector_entry_p
 
 from __future__ import annotations
 
-import inspect
 from typing import Any
 
 import numpy as np
@@ -24,7 +23,7 @@ from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 
 from softhand_env.envs.config import build_config
-from softhand_env.envs.softhand import SoftHandEnv
+from softhand_env.envs.options import EnvOptions
 from softhand_env.envs.task_configs import load_task_config
 from softhand_env.envs.transition import EpisodeBatch
 
@@ -42,7 +41,8 @@ class SoftHandVectorEnv(VectorEnv):
     autoreset_mode : AutoresetMode or str
         ``"NextStep"`` (default), ``"SameStep"`` or ``"Disabled"``.
     **kwargs
-        Keywords of :class:`~softhand_env.envs.SoftHandEnv` (``render_mode`` may be None or
+        Keywords of :class:`~softhand_env.envs.SoftHandEnv`, collected in an
+        :class:`~softhand_env.envs.options.EnvOptions` (``render_mode`` may be None or
         ``"rgb_array"``: :meth:`render` returns one frame per environment).
     """
 
@@ -59,19 +59,18 @@ class SoftHandVectorEnv(VectorEnv):
         autoreset_mode: AutoresetMode | str = AutoresetMode.NEXT_STEP,
         **kwargs: Any,
     ):
-        bound = inspect.signature(SoftHandEnv.__init__).bind(None, **kwargs)
-        bound.apply_defaults()
-        args = dict(bound.arguments)
-        del args["self"]
-        if args["render_mode"] == "human":
+        options = EnvOptions(**kwargs)
+        if options.render_mode == "human":
             raise ValueError("SoftHandVectorEnv supports render_mode None or 'rgb_array'")
-        cfg = build_config(**args)
+        cfg = build_config(options)
+        #: The keywords of these environments (:class:`~softhand_env.envs.options.EnvOptions`).
+        self.options = options
         if isinstance(num_envs, bool) or not isinstance(num_envs, (int, np.integer)):
             raise ValueError(f"num_envs must be an int >= 1 (got {num_envs!r})")
         if num_envs < 1:
             raise ValueError(f"num_envs must be >= 1 (got {num_envs!r})")
         if max_episode_steps is None:
-            max_episode_steps = load_task_config(args["task"])["max_episode_steps"]
+            max_episode_steps = load_task_config(options.task)["max_episode_steps"]
         if int(max_episode_steps) < 1:
             raise ValueError(f"max_episode_steps must be >= 1 (got {max_episode_steps!r})")
         n = int(num_envs)
@@ -80,7 +79,7 @@ class SoftHandVectorEnv(VectorEnv):
         self.num_envs = n
         self.max_episode_steps = int(max_episode_steps)
         self.autoreset_mode = AutoresetMode(autoreset_mode)
-        self.render_mode = args["render_mode"]
+        self.render_mode = options.render_mode
         self.dt = cfg.dt
         self.metadata = {
             **type(self).metadata,
