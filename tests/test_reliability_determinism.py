@@ -1,4 +1,4 @@
-"""Determinism (issue 7): the same seed and actions give bit-identical trajectories in other
+"""Determinism: the same seed and actions give bit-identical trajectories in other
 processes (Stable-Baselines3 ``SubprocVecEnv``, Gymnasium ``AsyncVectorEnv`` with fresh
 ``spawn`` interpreters) and after any earlier episodes (no state leaks through ``reset``:
 PID integral, observation history, randomised parameters, grasp cache, random streams).

@@ -1,4 +1,4 @@
-"""Divergence handling (issue 7): every way out of the model's validity ends the episode with
+"""Divergence handling: every way out of the model's validity ends the episode with
 its reason, nothing non-finite escapes, the next ``reset`` recovers completely, and the native
 vector env does exactly what independent single envs do.
 

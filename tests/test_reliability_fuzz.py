@@ -1,4 +1,4 @@
-"""Property-based fuzzing (issue 7): action sequences, ``gym.make`` keywords and hand YAML files.
+"""Property-based fuzzing: action sequences, ``gym.make`` keywords and hand YAML files.
 
 Properties:
 

@@ -1,4 +1,4 @@
-"""Invariants of every environment transition, shared by the reliability tests (issue 7).
+"""Invariants of every environment transition, shared by the reliability tests.
 
 :func:`check_transition` is the oracle the fuzzers (``test_reliability_fuzz.py``) and the
 divergence tests (``test_reliability_divergence.py``) apply after every ``step``: finite

@@ -49,7 +49,7 @@ def test_soak_format_is_readable():
 
 @pytest.mark.slow
 def test_soak_one_million_steps_keeps_memory_flat():
-    """Issue 7's soak: 1,000,000 env steps of random actions on 512 envs; peak RSS must grow
+    """Soak: 1,000,000 env steps of random actions on 512 envs; peak RSS must grow
     by < 5 % and nothing may become non-finite (12 s on 2 idle cores)."""
     r = run_soak("--steps", "1000000", "--num-envs", "512", timeout=1800)
     assert r["env_steps"] >= 1_000_000 and r["nonfinite"] == 0
