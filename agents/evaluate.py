@@ -78,7 +78,7 @@ def parse_args(argv: Sequence[str] | None = None) -> argparse.Namespace:
 def build(args: argparse.Namespace) -> tuple[Any, str, dict[str, Any], Any, str]:
     """Policy, env id, ``gym.make`` keywords, env wrappers and a short name for the output."""
     if args.model is not None:
-        policy = ModelPolicy(args.model, device=args.device)
+        policy: Any = ModelPolicy(args.model, device=args.device)
         if args.env is not None and args.env != policy.env_id:
             raise UserError(f"the model was trained on {policy.env_id}, not {args.env}")
         env_id, kwargs, wrapper = policy.env_id, dict(policy.env_kwargs), policy.env_wrapper
@@ -87,9 +87,10 @@ def build(args: argparse.Namespace) -> tuple[Any, str, dict[str, Any], Any, str]
         from agents.scripted import HandlingProcessPolicy, ModelBasedPolicy, PaperSequencePolicy
 
         goal_policy = args.policy in ("model-based", "loop-plan")
-        env_id = args.env or (None if goal_policy else "SoftHand-v0")
-        if env_id is None:
+        chosen = args.env or (None if goal_policy else "SoftHand-v0")
+        if chosen is None:
             raise UserError(f"--policy {args.policy} needs --env (a goal task)")
+        env_id = chosen
         if args.policy == "paper":
             policy = PaperSequencePolicy()
         elif args.policy == "handling":
@@ -248,7 +249,7 @@ def write_gif(path: Path, env_id: str, kwargs: dict[str, Any], wrapper: Any, pol
     frames: list = []
     run_episode(env, policy, seed, deterministic, frames)
     env.close()
-    stride = max(1, round(1.0 / (fps * env.unwrapped.dt)))
+    stride = max(1, round(1.0 / (fps * env.unwrapped.dt)))  # type: ignore[attr-defined]
     imageio.mimsave(path, frames[::stride], duration=1000.0 / fps, loop=0)
 
 
@@ -290,7 +291,9 @@ def main(argv: Sequence[str] | None = None) -> dict[str, float]:
     with (out / "results.yml").open("w") as fh:
         yaml.safe_dump(record, fh, sort_keys=False)
     if not args.no_plots:
-        plot_trajectories(out / "trajectories.png", episodes, targets, env.unwrapped.dt, title,
+        plot_trajectories(out / "trajectories.png", episodes, targets,
+                          env.unwrapped.dt,  # type: ignore[attr-defined]
+                          title,
                           args.gif_episode)
         write_gif(out / "episode.gif", env_id, kwargs, wrapper, policy, seeds[args.gif_episode],
                   args.gif_size, not args.stochastic)

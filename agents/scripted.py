@@ -220,7 +220,7 @@ class ModelBasedPolicy(ScriptedPolicy):
         """Set-points (K, 2) in rad from the grasp to the goal, sub-sampled to ``step_deg``."""
         from softhand_env import planner
 
-        kw = {"params": self.params, "grasp_angle": self.grasp_angle}
+        kw: dict[str, Any] = {"params": self.params, "grasp_angle": self.grasp_angle}
         try:
             if "x" in goal and "theta" in goal:
                 try:

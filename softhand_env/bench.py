@@ -25,7 +25,7 @@ from softhand_env.params import HandParams
 from softhand_env.reference import advance_reference
 
 
-def best_time(fn: Callable[[], None], repeat: int) -> float:
+def best_time(fn: Callable[[], object], repeat: int) -> float:
     """Smallest wall time (s) of ``repeat`` calls of ``fn``."""
     best = float("inf")
     for _ in range(repeat):

@@ -18,6 +18,7 @@ from __future__ import annotations
 import argparse
 import time
 from collections.abc import Callable
+from typing import Any
 
 import numpy as np
 
@@ -56,7 +57,8 @@ def bench_single(env_id: str, steps: int, repeats: int, **kwargs) -> float:
     env = gym.make(env_id, **kwargs)
     env.reset(seed=0)
     actions = np.random.default_rng(0).uniform(-1, 1, (steps, 2)).astype(np.float32)
-    if not env.unwrapped.config.actions.normalize:
+    base: Any = env.unwrapped  # a SoftHandEnv
+    if not base.config.actions.normalize:
         raise ValueError("the benchmark uses normalised actions")
 
     def run() -> float:

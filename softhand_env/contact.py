@@ -687,12 +687,15 @@ def power_law_force(d: ArrayLike, c_d: ArrayLike, zeta: ArrayLike):
 # --------------------------------------------------------------------------------------------
 
 
-def _bending_args(d_n, d_t, theta_p, E, cross_sign):
-    d_n = _real("d_n", d_n)
-    _require("d_n", d_n >= 0, ">= 0", d_n)
+def _bending_args(
+    d_n: ArrayLike, d_t: ArrayLike, theta_p: ArrayLike, E: ArrayLike, cross_sign: ArrayLike
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Validated ``(d_n, d_t, theta_p, E, cross_sign)`` of the bending-energy functions."""
+    n = _real("d_n", d_n)
+    _require("d_n", n >= 0, ">= 0", n)
     sign = _real("cross_sign", cross_sign)
     _require("cross_sign", np.abs(sign) == 1, "+1 or -1", sign)
-    return d_n, _real("d_t", d_t), _angle(theta_p), _positive("E", E), sign
+    return n, _real("d_t", d_t), _angle(theta_p), _positive("E", E), sign
 
 
 def bending_energy(
@@ -727,11 +730,9 @@ def bending_energy(
     float or ndarray
         Energy in J, shape ``broadcast(d_n, d_t, theta_p, E, cross_sign)``.
     """
-    d_n, d_t, theta, E, sign = _bending_args(d_n, d_t, theta_p, E, cross_sign)
+    n, t, theta, e, sign = _bending_args(d_n, d_t, theta_p, E, cross_sign)
     cos2 = np.cos(theta) ** 2
-    return _out(
-        np.pi * E * (d_n**3 / (3 * cos2) + sign * d_n**2 * d_t * np.tan(theta) + d_n * d_t**2)
-    )
+    return _out(np.pi * e * (n**3 / (3 * cos2) + sign * n**2 * t * np.tan(theta) + n * t**2))
 
 
 def bending_energy_gradient(
@@ -754,11 +755,11 @@ def bending_energy_gradient(
         Shape ``broadcast(...) + (3,)``: ``[..., 0]`` in N (J/m), ``[..., 1]`` in N,
         ``[..., 2]`` in J/rad (N m).
     """
-    d_n, d_t, theta, E, s = _bending_args(d_n, d_t, theta_p, E, cross_sign)
+    n, t, theta, e, s = _bending_args(d_n, d_t, theta_p, E, cross_sign)
     sec2, tan = 1 / np.cos(theta) ** 2, np.tan(theta)
     parts = (
-        d_n**2 * sec2 + 2 * s * d_n * d_t * tan + d_t**2,
-        s * d_n**2 * tan + 2 * d_n * d_t,
-        2 * d_n**3 * tan * sec2 / 3 + s * d_n**2 * d_t * sec2,
+        n**2 * sec2 + 2 * s * n * t * tan + t**2,
+        s * n**2 * tan + 2 * n * t,
+        2 * n**3 * tan * sec2 / 3 + s * n**2 * t * sec2,
     )
-    return np.stack(np.broadcast_arrays(*(np.pi * E * p for p in parts)), axis=-1)
+    return np.stack(np.broadcast_arrays(*(np.pi * e * p for p in parts)), axis=-1)

@@ -102,6 +102,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 from numba import njit
+from numpy.typing import ArrayLike
 
 from softhand_env.params import HandParams, load_hand_params
 
@@ -886,7 +887,7 @@ def _make_path(th, z, s, lam, P, res, kkt, hred, iters, deg, p, scheme, status="
     )
 
 
-def linear_path(start: np.ndarray, end: np.ndarray, step: float = DEFAULT_STEP) -> np.ndarray:
+def linear_path(start: ArrayLike, end: ArrayLike, step: float = DEFAULT_STEP) -> np.ndarray:
     """Straight finger-angle path from ``start`` to ``end`` (both (2,), rad), ends included.
 
     The number of increments is ceil(max|end - start| / step); returns shape (n + 1, 2).

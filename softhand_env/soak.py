@@ -85,6 +85,7 @@ def soak(
 
     envs = gym.make_vec(env_id, num_envs=num_envs, vectorization_mode="vector_entry_point")
     space = envs.action_space
+    assert isinstance(space, gym.spaces.Box)
     low, high = space.low.astype(np.float64), space.high.astype(np.float64)
     rng = np.random.default_rng(seed)
     reasons: Counter[str] = Counter()

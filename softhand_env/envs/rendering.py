@@ -13,6 +13,7 @@ import math
 from collections.abc import Sequence
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from softhand_env.params import HandParams
 
@@ -75,12 +76,12 @@ class Rasterizer:
             inside &= (bx - ax) * (Y - ay) - (by - ay) * (X - ax) >= 0.0
         self.image[idx][inside] = color
 
-    def segment(self, p: Sequence[float], q: Sequence[float], width_px: float, color) -> None:
+    def segment(self, p: ArrayLike, q: ArrayLike, width_px: float, color) -> None:
         """A straight stroke from p to q (m), ``width_px`` pixels wide."""
-        p, q = np.asarray(p, dtype=np.float64), np.asarray(q, dtype=np.float64)
-        d = q - p
+        a, b = np.asarray(p, dtype=np.float64), np.asarray(q, dtype=np.float64)
+        d = b - a
         n = np.array([-d[1], d[0]]) / max(np.hypot(*d), 1e-12) * (0.5 * width_px / self.scale)
-        self.polygon(np.array([p + n, q + n, q - n, p - n]), color)
+        self.polygon(np.array([a + n, b + n, b - n, a - n]), color)
 
     def disk(self, center, radius: float, color, cuts: Sequence[tuple] = ()) -> None:
         """Fill the disk ∩ {p : n·(p - center) <= c} for each (n, c) in ``cuts``."""

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import gymnasium as gym
 import numpy as np
@@ -12,6 +12,9 @@ from softhand_env.envs.observation import observe_rows
 from softhand_env.envs.options import EnvOptions
 from softhand_env.envs.transition import EpisodeBatch
 from softhand_env.physics import HandPhysics
+
+if TYPE_CHECKING:
+    from softhand_env.envs.rendering import HumanViewer, SceneRenderer
 
 _ONE = np.ones(1, dtype=bool)
 
@@ -304,8 +307,8 @@ class SoftHandEnv(gym.Env):
         self._batch = EpisodeBatch(cfg, None)
         #: The hand (a one-hand :class:`~softhand_env.physics.HandPhysics`).
         self.physics = self._batch.physics
-        self._renderer = None
-        self._viewer = None
+        self._renderer: SceneRenderer | None = None
+        self._viewer: HumanViewer | None = None
 
     # ------------------------------------------------------------------------------ reset
     def reset(

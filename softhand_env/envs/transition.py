@@ -26,6 +26,14 @@ from softhand_env.envs.start import start_episode
 from softhand_env.physics import HandPhysics
 
 
+def _generator(rngs: Sequence[np.random.Generator | None], i: Any) -> np.random.Generator:
+    """Generator of environment ``i`` (seeded by every reset before it is used)."""
+    rng = rngs[int(i)]
+    if rng is None:
+        raise RuntimeError(f"environment {int(i)} has no random generator: call reset first")
+    return rng
+
+
 class EpisodeBatch:
     """N episodes of the environment configured by ``cfg`` (see module doc).
 
@@ -88,10 +96,10 @@ class EpisodeBatch:
             self._goal_cols = tuple(self.goal.T)
 
     # ------------------------------------------------------------------------------ reset
-    def start(self, i: int, rng: np.random.Generator, goal: Any = None) -> None:
+    def start(self, i: int, rng: np.random.Generator | None, goal: Any = None) -> None:
         """Start a new episode in environment ``i`` (draws from ``rng``, see
         :func:`~softhand_env.envs.start.start_episode`); call :meth:`finish_reset` next."""
-        start = start_episode(self.cfg, rng, goal)
+        start = start_episode(self.cfg, _generator((rng,), 0), goal)
         self.physics.reset_hand(i, start.state, start.setpoint, start.params)
         self.goal[i] = start.goal
         self.terms[:, i] = 0.0
@@ -123,7 +131,7 @@ class EpisodeBatch:
             out[h:] = goal_obs[i]
             out[:f] = frames[i]
             if noise > 0:
-                add_frame_noise(out[:f], noise, rngs[i])
+                add_frame_noise(out[:f], noise, _generator(rngs, i))
             for k in range(1, layout.history_len):
                 out[k * f : (k + 1) * f] = out[:f]
 
@@ -205,7 +213,7 @@ class EpisodeBatch:
         if noise > 0:
             rows = range(n) if skip is None else np.flatnonzero(~skip)
             for i in rows:
-                add_frame_noise(self.obs[i, :f], noise, rngs[i])
+                add_frame_noise(self.obs[i, :f], noise, _generator(rngs, i))
         return self.terms.sum(axis=0), terminated
 
     # ------------------------------------------------------------------------------- info

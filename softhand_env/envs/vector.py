@@ -15,7 +15,7 @@ Create it with ``gym.make_vec(id, num_envs=N, vectorization_mode="vector_entry_p
 
 from __future__ import annotations
 
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from gymnasium.utils import seeding
@@ -26,6 +26,9 @@ from softhand_env.envs.config import build_config
 from softhand_env.envs.options import EnvOptions
 from softhand_env.envs.task_configs import load_task_config
 from softhand_env.envs.transition import EpisodeBatch
+
+if TYPE_CHECKING:
+    from softhand_env.envs.rendering import SceneRenderer
 
 
 class SoftHandVectorEnv(VectorEnv):
@@ -97,11 +100,11 @@ class SoftHandVectorEnv(VectorEnv):
         self._autoreset = np.zeros(n, dtype=bool)
         self._rngs: list[np.random.Generator | None] = [None] * n
         self._seeds: list[int | None] = [None] * n
-        self._renderer = None
+        self._renderer: SceneRenderer | None = None
 
     # ------------------------------------------------------------------------------ reset
     @property
-    def np_random_seed(self) -> tuple[int | None, ...]:
+    def np_random_seed(self) -> tuple[int | None, ...]:  # type: ignore[override]  # per env
         """Seeds of the environments' generators (as :class:`SyncVectorEnv` reports them)."""
         return tuple(self._seeds)
 
@@ -133,7 +136,7 @@ class SoftHandVectorEnv(VectorEnv):
         for i in np.flatnonzero(mask):
             if seeds[i] is not None or self._rngs[i] is None:
                 self._rngs[i], self._seeds[i] = seeding.np_random(seeds[i])
-            self._batch.start(i, self._rngs[i])
+            self._batch.start(int(i), self._rngs[i])
         self._batch.finish_reset(mask, self._rngs)
         self._steps[mask] = 0
         self._autoreset[mask] = False
@@ -142,7 +145,7 @@ class SoftHandVectorEnv(VectorEnv):
     def _reset_rows(self, mask: np.ndarray) -> None:
         """Start new episodes in the environments of ``mask`` (their own generators)."""
         for i in np.flatnonzero(mask):
-            self._batch.start(i, self._rngs[i])
+            self._batch.start(int(i), self._rngs[i])
         self._batch.finish_reset(mask, self._rngs)
         self._steps[mask] = 0
 
