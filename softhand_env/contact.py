@@ -1,89 +1,23 @@
 r"""Soft-fingertip contact models (chapters 2, 3 and Eq 5.4 of the dissertation).
 
-A hemispherical fingertip of radius ``a`` sits on its flat base (the plane ``z = 0``) and is
-modelled as a bed of vertical virtual linear springs (Fig 2.1).  A rigid planar object tilted by
-``theta_p`` presses the tip by the maximum displacement ``d``; its surface is the plane
-``x sin(theta_p) + z cos(theta_p) = a - d`` (Eq A.3).  The spring above ``(x, y)`` has natural
-length ``L = sqrt(a^2 - x^2 - y^2)``, stiffness ``k = E dS / L`` (Eq 2.2) and compression ``PQ``
-(Eq 2.1).  Units are SI throughout: ``d`` and ``a`` in m, angles in rad, ``E`` in Pa, forces in
-N, energies in J, stiffness in N/m.
+A hemispherical fingertip of radius ``a`` on its flat base is a bed of vertical virtual linear
+springs (Fig 2.1) pressed by a rigid planar object tilted by ``theta_p`` with the maximum
+displacement ``d``. Units are SI throughout: ``d`` and ``a`` in m, angles in rad, ``E`` in Pa,
+forces in N, energies in J, stiffness in N/m.
 
-Models
-------
-* Closed forms (chapter 2): :func:`stiffness` ``K = 2 pi E d`` (Eq 2.7), :func:`normal_force`
-  ``F = pi E d^2 / cos(theta_p)`` (Eq 2.11), :func:`potential_energy`
-  ``P = pi E d^3 / (3 cos^2 theta_p)`` (Eq 2.14).
-* Numerical integrals over the contact ellipse of Eqs 2.3, 2.8 and 2.12:
-  :func:`stiffness_numeric`, :func:`normal_force_numeric`, :func:`potential_energy_numeric`.
-  They use the substitution of Appendix C, ``x = r cos(phi) cos(theta_p) + (a-d) sin(theta_p)``,
-  ``y = r sin(phi)`` (Jacobian ``r cos(theta_p)``), and a tanh-sinh product rule in ``(r, phi)``,
-  which also copes with the integrable ``1/L`` singularity that appears at the bound below.
-  Measured accuracy against the closed forms: relative error below 1e-14 for
-  ``d <= 8 mm, |theta_p| <= 30 deg, a = 20 mm``, below 1e-10 right up to the bound.
-* Material nonlinearity (chapter 3): :func:`nonlinear_stress` (the quintic fit of Eq 3.3),
-  :func:`nonlinear_modulus` (its derivative, Eq 3.4) and :func:`nonlinear_normal_force` (Eq 3.5
-  with the spring strain of Eq 3.6).
-* Comparison models: Hertz :func:`hertz_force` (Eq 3.1) and Kao's power law
-  :func:`power_law_force` (Eq 3.2).
-* The 2-D compression + bending energy of one fingertip (Eq 5.4): :func:`bending_energy` and
+* Closed forms (chapter 2): :func:`stiffness`, :func:`normal_force`, :func:`potential_energy`;
+  exact while the contact circle stays above the fingertip base (:func:`beyond_base`,
+  :func:`contact_within_base`, :func:`max_contact_angle`).
+* Numerical integrals over the (truncated) contact region: :func:`stiffness_numeric`,
+  :func:`normal_force_numeric`, :func:`potential_energy_numeric`.
+* Material nonlinearity (chapter 3): :func:`nonlinear_stress`, :func:`nonlinear_modulus`,
+  :func:`nonlinear_normal_force`; comparison models :func:`hertz_force`, :func:`power_law_force`.
+* Compression + bending energy of one fingertip (Eq 5.4): :func:`bending_energy`,
   :func:`bending_energy_gradient`.
 
-Exactness bound
----------------
-The closed forms are **exact**, not approximations, as long as the contact circle (the
-intersection of the object plane with the sphere, radius ``a_c = sqrt(a^2 - (a-d)^2)``) stays
-above the fingertip base, i.e. ``|tan(theta_p)| <= (a - d) / a_c``
-(:func:`contact_within_base`, :func:`max_contact_angle`).  Reason: ``dx dy / L = dA / a`` maps
-the projected ellipse onto the spherical cap cut off by the object, and over a cap of height
-``d`` the integrals of Eqs 2.3, 2.8 and 2.12 evaluate to ``2 pi d``, ``pi d^2 / cos`` and
-``pi d^3 / (3 cos^2)`` whatever the tilt.  (Assumption 3 of the text, "K is independent of
-theta_p", is therefore a theorem inside the bound.)
-
-Beyond the bound the tilted plane would pass below the base on the side ``x > (a - d) /
-sin(theta_p)``: the object would have to cut through the rigid finger there (the text excludes
-contact with the underside, §2).  Behaviour chosen here:
-
-* the numerical integrals integrate the **physically truncated** region: only springs whose
-  contact point lies on or above the base (``z_P >= 0``, hence spring strain in ``[0, 1]``)
-  contribute.  The result is continuous at the bound and strictly smaller than the closed form
-  beyond it;
-* the closed forms accept any ``|theta_p| < pi/2`` but **over-predict** beyond the bound
-  (e.g. ``a = 20 mm, d = 8 mm``: bound 36.87 deg; at 42.6 deg the closed-form K exceeds the
-  truncated integral by 20 %).
-  Callers that need to know (the dynamic model) should flag states with
-  :func:`contact_within_base`.
-
-Nonlinear material: units and the two forms of Eq 3.5
------------------------------------------------------
-Eq 3.3 is printed in **percent strain and kPa stress**: ``sigma_kPa(e) = 1.829 e - 0.1455 e^2
-+ 8.778e-3 e^3 - 1.908e-4 e^4 + 1.548e-6 e^5`` with ``e = 100 eps``, so
-``sigma(50 %) = 116.2 kPa`` (= 0.232 MPa x 0.5 within 0.2 %, the linear fit of §3.2).  Here
-:func:`nonlinear_stress` takes the strain as a fraction and returns Pa
-(``sigma_Pa(eps) = 1e3 sigma_kPa(100 eps)``), and :func:`nonlinear_modulus` returns
-``d sigma_Pa / d eps = 1e5 E_printed(100 eps)`` in Pa, with ``E_printed`` the Eq 3.4 polynomial
-in kPa per percent.
-
-Eq 3.5 as printed, ``F = int E(eps) eps dS``, multiplies the *tangent* modulus by the strain
-(``form="printed"``).  That is the spring force only for a linear material: applied to the
-uniaxial test it was fitted to, it would not reproduce the fitted curve (at 50 % strain it gives
-304 kPa instead of 116 kPa).  The consistent spring force is the stress, ``F = int sigma(eps)
-dS`` (``form="secant"``, i.e. secant modulus times strain); it is the derivative of the strain
-energy ``int L dS int_0^eps sigma``.  ``"secant"`` is the **default**.  Numbers for
-``a = 20 mm, theta_p = 0``: the printed force crosses the linear Eq 2.11 force with
-``E = 0.232 MPa`` exactly once in ``(0, 10) mm``, at ``d = 7.634 mm`` (42.5 N); the secant force
-stays below the linear one on the whole range.
-
-Cross-term sign of Eq 5.4
--------------------------
-Eq 5.4 prints ``- d_n^2 d_t tan(theta_p)`` for one fingertip, Eq 5.5 prints ``(-1)^i`` per
-finger; :func:`bending_energy` exposes the sign as ``cross_sign`` (default ``-1``).
-
-Validation
-----------
-Every public function raises :class:`ValueError` naming the offending argument for non-finite
-input, ``d < 0`` (or ``d >= a`` where ``a`` is known), ``|theta_p| >= pi/2``, ``E <= 0``,
-``a <= 0`` and the other ranges listed in the docstrings.  ``d = 0`` is valid (zero force).
-Scalar arguments give NumPy scalars; arrays broadcast against each other.
+Derivations, the exactness bound, units of Eqs 3.3-3.5 and the cross-term sign:
+``docs/contact.md``. Every public function raises :class:`ValueError` naming the offending
+argument for out-of-range input; scalar arguments give NumPy scalars, arrays broadcast.
 """
 
 from __future__ import annotations

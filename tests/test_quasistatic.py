@@ -50,7 +50,7 @@ def test_energy_scalar_matches_contact_closed_form():
 @pytest.mark.parametrize("scheme", [0, 1])
 def test_terms_derivatives_match_finite_differences(params, scheme):
     """Analytic J, Hessians of the constraints, grad P and Hess P vs central differences."""
-    prm = qs._pack(params)
+    prm = qs.solver._pack(params)
     rng = np.random.default_rng(1)
     z = np.array([0.004, 0.072, -0.15, 0.007, 0.0085])
     zp = z + rng.normal(scale=[1e-4, 1e-4, 2e-3, 1e-5, 1e-5])
@@ -60,7 +60,7 @@ def test_terms_derivatives_match_finite_differences(params, scheme):
 
     def ev(zz):
         out = (np.zeros(4), np.zeros((4, 5)), np.zeros((4, 5, 5)), np.zeros(5), np.zeros((5, 5)))
-        P = qs._terms(zz, th, zp, thp, sp, prm, scheme, *out)
+        P = qs.solver._terms(zz, th, zp, thp, sp, prm, scheme, *out)
         return (P, *out)
 
     P, g, J, Hg, gP, HP = ev(z)
