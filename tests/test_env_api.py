@@ -20,9 +20,9 @@ import yaml
 import softhand_env
 from softhand_env.envs import ENV_IDS, SoftHandEnv
 from softhand_env.envs.tasks import GOAL_TERMS
-from softhand_env.failure import REASONS
-from softhand_env.model import DN_1, DN_2, TH_OBJ, X_OBJ, initial_state
-from softhand_env.params import load_hand_params
+from softhand_env.physics.failure import REASONS
+from softhand_env.physics.model import DN_1, DN_2, TH_OBJ, X_OBJ, initial_state
+from softhand_env.physics.params import load_hand_params
 
 ROOT = Path(softhand_env.__file__).resolve().parent
 IDS = list(ENV_IDS)
@@ -423,7 +423,7 @@ def test_physical_failures_terminate_with_reason(setpoint_deg, reason):
 
 
 def test_nonfinite_state_rolls_back_and_terminates(monkeypatch):
-    from softhand_env import kernel
+    from softhand_env.physics import kernel
 
     env = gym.make("SoftHandReorient-v0").unwrapped
     env.reset(seed=0)

@@ -12,7 +12,7 @@ import pytest
 from scipy.optimize import minimize_scalar
 
 from softhand_env import quasistatic as qs
-from softhand_env.params import load_hand_params
+from softhand_env.physics.params import load_hand_params
 
 DEG = math.pi / 180
 
@@ -39,7 +39,7 @@ def grasp6(params):
 
 
 def test_energy_scalar_matches_contact_closed_form():
-    contact = pytest.importorskip("softhand_env.contact")
+    contact = pytest.importorskip("softhand_env.physics.contact")
     d = np.array([0.0, 1e-3, 5e-3, 9e-3])
     tp = np.array([0.0, 0.3, -0.5, 0.7])
     E = 0.30378e6
@@ -407,7 +407,7 @@ def test_figure_command_writes_pngs(tmp_path, capsys):
 
 
 def test_benchmark_runs_under_budget(capsys):
-    from softhand_env import bench_quasistatic
+    from softhand_env.tools import bench_quasistatic
 
     assert bench_quasistatic.main(["--repeat", "1"]) == 0
     r = bench_quasistatic.bench(repeat=1)

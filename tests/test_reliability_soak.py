@@ -16,8 +16,8 @@ ROOT = Path(softhand_env.__file__).resolve().parent.parent
 
 
 def run_soak(*args: str, timeout: float = 300) -> dict:
-    """Run ``python -m softhand_env.soak ... --json`` in a fresh process; its figures."""
-    cmd = [sys.executable, "-m", "softhand_env.soak", *args, "--json"]
+    """Run ``python -m softhand_env.tools.soak ... --json`` in a fresh process; its figures."""
+    cmd = [sys.executable, "-m", "softhand_env.tools.soak", *args, "--json"]
     env = {**os.environ, "PYTHONPATH": os.pathsep.join(filter(None, [str(ROOT),
                                                                       os.environ.get("PYTHONPATH")]))}
     run = subprocess.run(cmd, capture_output=True, text=True, timeout=timeout, env=env, cwd=ROOT)
@@ -40,7 +40,7 @@ def test_soak_smoke_run_reports_consistent_figures():
 
 
 def test_soak_format_is_readable():
-    from softhand_env.soak import SoakResult, format_result
+    from softhand_env.tools.soak import SoakResult, format_result
 
     text = format_result(SoakResult("SoftHand-v0", 2, 100, 1.0, 100.0, 3, 1,
                                     {"grasp_lost": 2}, 0, 100.0, 101.0, 1.0, 99.0, 100.0))

@@ -21,7 +21,7 @@ from softhand_env.envs.observation import ObservationLayout
 from softhand_env.envs.options import EnvOptions
 from softhand_env.envs.randomization import PRESET, Randomization
 from softhand_env.envs.tasks import TASK_KWARGS, Task, make_task
-from softhand_env.params import HandParams, is_finite_real, load_hand_params
+from softhand_env.physics.params import HandParams, is_finite_real, load_hand_params
 
 #: Allowed ``render_mode`` values.
 RENDER_MODES = ("human", "rgb_array")
@@ -55,7 +55,7 @@ class EnvConfig:
         Divergence limit on |C^H| (m).
     base_limit : float
         1 + ``base_tolerance``: a contact past its fingertip base fails when it reaches past
-        the base by more than this (:func:`softhand_env.contact.beyond_base`).
+        the base by more than this (:func:`softhand_env.physics.contact.beyond_base`).
     render_mode : str or None
     render_size : (int, int)
         Frame (width, height) in pixels.

@@ -15,7 +15,7 @@ from collections.abc import Sequence
 import numpy as np
 from numpy.typing import ArrayLike
 
-from softhand_env.params import HandParams
+from softhand_env.physics.params import HandParams
 
 BACKGROUND = (246, 245, 240)
 PALM = (95, 95, 105)

@@ -11,7 +11,7 @@ from softhand_env.envs.config import RENDER_MODES, build_config
 from softhand_env.envs.observation import observe_rows
 from softhand_env.envs.options import EnvOptions
 from softhand_env.envs.transition import EpisodeBatch
-from softhand_env.physics import HandPhysics
+from softhand_env.physics.hand import HandPhysics
 
 if TYPE_CHECKING:
     from softhand_env.envs.rendering import HumanViewer, SceneRenderer

@@ -6,7 +6,7 @@
 :func:`grasp_state` holds the grasp set-points for ``n_substeps`` RK4 substeps from the
 paper's parallel point-contact state (``n_substeps = 0`` returns that state itself, as the
 paper's replay needs) and classifies the result like every control step
-(:func:`softhand_env.failure.classify`, through :class:`~softhand_env.physics.HandPhysics`).
+(:func:`softhand_env.physics.failure.classify`, through :class:`~softhand_env.physics.HandPhysics`).
 Results are cached per (parameters, set-points, substeps, limits), so resets without
 randomisation cost a copy.
 """
@@ -20,8 +20,8 @@ from typing import Any
 import numpy as np
 
 from softhand_env.envs.config import EnvConfig
-from softhand_env.params import HandParams
-from softhand_env.physics import HandPhysics, PhysicsError
+from softhand_env.physics.hand import HandPhysics, PhysicsError
+from softhand_env.physics.params import HandParams
 
 _CACHE: OrderedDict[tuple[Any, ...], tuple[np.ndarray, float, float]] = OrderedDict()
 _CACHE_SIZE = 64

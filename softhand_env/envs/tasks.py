@@ -20,7 +20,7 @@ Reward of a goal task (every term is copied to ``info``; reward = sum of the ter
 
 ``p_k`` is the object's x (m) or theta (rad), ``g_k`` its target, ``u`` the set-point pair (rad),
 ``max_delta`` the action's set-point bound per step (rad), ``failed`` a physical termination
-(:mod:`softhand_env.failure`).
+(:mod:`softhand_env.physics.failure`).
 ``is_success`` = every ``|p_k - g_k| <= tolerance_k`` while the object is grasped.
 """
 
@@ -34,7 +34,7 @@ import numpy as np
 
 from softhand_env.envs.observation import ANGLE_SCALE, OBS_BOUND, POSITION_SCALE
 from softhand_env.envs.task_configs import TASK_TARGETS, load_task_config
-from softhand_env.params import is_finite_real
+from softhand_env.physics.params import is_finite_real
 
 #: Constructor keywords that configure a goal task (``None`` in the env signature = task config).
 TASK_KWARGS = (

@@ -23,7 +23,7 @@ import numpy as np
 from softhand_env.envs.config import EnvConfig
 from softhand_env.envs.observation import add_frame_noise, observe_rows
 from softhand_env.envs.start import start_episode
-from softhand_env.physics import HandPhysics
+from softhand_env.physics.hand import HandPhysics
 
 
 def _generator(rngs: Sequence[np.random.Generator | None], i: Any) -> np.random.Generator:

@@ -16,7 +16,7 @@ from pathlib import Path
 
 import numpy as np
 
-from softhand_env.model import (
+from softhand_env.physics.model import (
     DN_1,
     DT_1,
     NY,
@@ -27,7 +27,7 @@ from softhand_env.model import (
     constraint_residuals,
     pack_params,
 )
-from softhand_env.params import load_hand_params
+from softhand_env.physics.params import load_hand_params
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -51,7 +51,7 @@ def run(args: argparse.Namespace) -> list[Path]:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from softhand_env.simulate import run_paper_motions
+    from softhand_env.tools.simulate import run_paper_motions
 
     if not args.duration > 0:
         raise ValueError(f"--duration must be > 0 (got {args.duration})")

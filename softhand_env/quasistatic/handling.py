@@ -14,7 +14,7 @@ import math
 
 import numpy as np
 
-from softhand_env.params import HandParams
+from softhand_env.physics.params import HandParams
 from softhand_env.quasistatic.solver import (
     DEFAULT_STEP,
     QuasiStaticPath,

@@ -23,7 +23,7 @@ import numpy as np
 from numba import njit
 from numpy.typing import ArrayLike
 
-from softhand_env.params import HandParams, load_hand_params
+from softhand_env.physics.params import HandParams, load_hand_params
 
 #: Default finger-angle increment (rad) of the handling process: 0.1 deg.
 DEFAULT_STEP = math.radians(0.1)
@@ -52,7 +52,7 @@ _NONFINITE = 4
 def energy_scalar(d, theta_p, E):
     """Closed-form fingertip energy pi E d^3 / (3 cos^2 theta_p) (Eq 2.14), scalar (J).
 
-    Compiled copy of :func:`softhand_env.contact.potential_energy` for the inner loop.
+    Compiled copy of :func:`softhand_env.physics.contact.potential_energy` for the inner loop.
     """
     c = math.cos(theta_p)
     return math.pi * E * d * d * d / (3.0 * c * c)
@@ -601,7 +601,7 @@ def _pack(params: HandParams) -> np.ndarray:
 def initial_state(params: HandParams | None = None) -> QuasiStaticState:
     """Symmetric first-touch configuration: theta_1 = theta_2 = theta_t, d = 0, s = 0.
 
-    theta_t is :func:`softhand_env.model.initial_finger_angle` (0 for Tables 4.1/5.1, where
+    theta_t is :func:`softhand_env.physics.model.initial_finger_angle` (0 for Tables 4.1/5.1, where
     the parallel fingers touch the object at exactly one point); the object centre is at the
     height of the fingertip centres (GQ_i = 0, so s_i = 0) and theta_obj = 0. This is also the
     chapter-5 dynamic model's initial state.
@@ -611,7 +611,7 @@ def initial_state(params: HandParams | None = None) -> QuasiStaticState:
     ValueError
         If the geometry admits no point-contact state.
     """
-    from softhand_env.model import initial_finger_angle
+    from softhand_env.physics.model import initial_finger_angle
 
     p = resolve_params(params)
     t = initial_finger_angle(p)
@@ -769,10 +769,10 @@ def solve_path(
 def _base_flags(d: np.ndarray, theta_p: np.ndarray, a: float) -> np.ndarray:
     """(N, 2) True where the contact circle passes the fingertip base.
 
-    Uses :func:`softhand_env.contact.contact_within_base`; compressions of degenerate rows can
+    Uses :func:`~softhand_env.contact.contact_within_base`; compressions of degenerate rows can
     be round-off negatives (|d| < D_DEGENERATE) and are clipped to 0 for the check.
     """
-    from softhand_env.contact import contact_within_base
+    from softhand_env.physics.contact import contact_within_base
 
     return ~np.asarray(contact_within_base(np.maximum(d, 0.0), theta_p, a), dtype=bool)
 

@@ -44,7 +44,7 @@ Physics (derived here, not transcribed from the OCR-damaged Eqs 5.31-5.41)
 * PID on the finger angles (Eq 5.42): u_INi = -Kp (theta_i - theta_i^d) - Kd dtheta_i/dt - Ki z_i.
 
 All functions are compiled with numba (``cache=True``) and written in scalar form so that the
-integrator in :mod:`softhand_env.kernel` allocates nothing per substep; each one is also callable
+integrator in :mod:`.kernel` allocates nothing per substep; each one is also callable
 from Python.
 """
 
@@ -55,7 +55,7 @@ import math
 import numpy as np
 from numba import njit
 
-from softhand_env.params import HandParams
+from softhand_env.physics.params import HandParams
 
 #: Number of generalized coordinates.
 NQ = 9
@@ -155,7 +155,7 @@ _C6 = -1.13596475577881948265e-11
 def sincos(x):
     """(sin x, cos x) in straight-line floating-point code (no libm call, no branch).
 
-    Used by the model's right-hand side so that the lane kernel of :mod:`softhand_env.kernel`
+    Used by the model's right-hand side so that the lane kernel of :mod:`.kernel`
     vectorises across systems (a libm call would stop LLVM's loop vectoriser) and the
     single-system kernel computes exactly the same function. Error <= 1 ulp against libm for
     |x| < 1e5 (tested to 2 ulp over that range); accurate to ~|x| 1e-26 absolute up to
@@ -393,7 +393,7 @@ def csm_terms(y, u, prm):
 
     ``y`` (state, >= 20 entries), ``u`` (2 set-points) and ``prm`` (N_PARAMS) may be float64
     arrays or tuples of floats: :func:`csm_rhs` passes arrays, the lane kernel of
-    :mod:`softhand_env.kernel` tuples loaded from its structure-of-arrays block, and the
+    :mod:`softhand_env.physics.kernel` tuples loaded from its structure-of-arrays block, and the
     function is inlined (numba IR) into both, so that both compile the same source (in
     strict IEEE arithmetic, see ``_FASTMATH``: the two give bit-identical results).
 

@@ -10,7 +10,7 @@ compiled pass over N hands:
 - ``overcompressed``: a d_n >= ``dn_limit``.
 - ``grasp_lost``: a d_n <= 0 (the bilateral contact would pull).
 - ``contact_past_base``: a contact circle reached past its fingertip base by more than the
-  allowed tolerance (:func:`softhand_env.kernel.past_base` with ``limit = base_limit``).
+  allowed tolerance (:func:`softhand_env.physics.kernel.past_base` with ``limit = base_limit``).
 
 If several apply, the first of :data:`REASONS` is reported. A hand is *grasped* when both
 d_n > 0 and its state did not diverge.
@@ -22,7 +22,7 @@ import math
 
 from numba import njit
 
-from softhand_env.kernel import (
+from softhand_env.physics.kernel import (
     FLAG_BASE,
     FLAG_CONSTRAINT,
     FLAG_LOST,
@@ -31,7 +31,7 @@ from softhand_env.kernel import (
     FLAG_SKIP,
     past_base,
 )
-from softhand_env.model import DN_1, NY, P_A
+from softhand_env.physics.model import DN_1, NY, P_A
 
 #: Termination reasons, highest priority first; :func:`classify` writes index + 1 (0: none).
 REASONS = (

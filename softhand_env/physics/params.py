@@ -52,7 +52,7 @@ from typing import Any
 
 import numpy as np
 
-CONFIG_DIR = Path(__file__).resolve().parent / "configs"
+CONFIG_DIR = Path(__file__).resolve().parents[1] / "configs"
 
 #: Allowed values of :attr:`HandParams.cross_term`.
 CROSS_TERMS = ("uniform", "printed")

@@ -35,8 +35,8 @@ import math
 import numpy as np
 from numba import njit, prange
 
-from softhand_env.contact import beyond_base
-from softhand_env.model import (
+from softhand_env.physics.contact import beyond_base
+from softhand_env.physics.model import (
     _FASTMATH,
     DN_1,
     N_DIAG,
@@ -146,7 +146,7 @@ _beyond_base = njit(cache=True, inline="always")(beyond_base)
 @njit(cache=True)
 def past_base(y, a, limit):
     """True if a contact circle of state ``y`` (20,) reaches past its fingertip base by more
-    than ``limit`` (1 = at the base, see :func:`softhand_env.contact.beyond_base`); a finger
+    than ``limit`` (1 = at the base, see :func:`softhand_env.physics.contact.beyond_base`); a finger
     with d_n outside (0, a) has no contact circle."""
     for i in range(2):
         dn = y[DN_1 + i]
@@ -212,11 +212,11 @@ def advance(y, u, prm, n, ch_limit, diag):
     Parameters
     ----------
     y : ndarray, shape (20,), float64, modified in place
-        State [q, p, z] (see :mod:`softhand_env.model`).
+        State [q, p, z] (see :mod:`softhand_env.physics.model`).
     u : ndarray, shape (2,)
         Finger-angle set-points (rad), held constant over the call.
     prm : ndarray, shape (N_PARAMS,)
-        Packed parameters (:func:`softhand_env.model.pack_params`).
+        Packed parameters (:func:`softhand_env.physics.model.pack_params`).
     n : int
         Number of substeps.
     ch_limit : float
@@ -240,7 +240,7 @@ def advance(y, u, prm, n, ch_limit, diag):
 # ------------------------------------------------------------------------------ lane kernel
 # The batched kernel integrates blocks of LANES systems at once in structure-of-arrays form:
 # quantity j of lane l lives at [j * LANES + l] of a flat float64 array, so the loop over the
-# lanes of :func:`_rhs_lanes` (the model's :func:`~softhand_env.model.csm_terms`, inlined) is
+# lanes of :func:`_rhs_lanes` (the model's :func:`.model.csm_terms`, inlined) is
 # a loop of unit-stride loads and stores that LLVM vectorises across systems (one AVX-512
 # register = 8 lanes, 2 per block; 4 lanes per AVX2 register). The model's sin/cos is
 # straight-line code (model.sincos): a libm call would stop the vectoriser. The arithmetic

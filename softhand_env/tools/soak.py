@@ -1,6 +1,6 @@
 """Soak test of the native vector env (memory, throughput, termination reasons).
 
-Usage: ``python -m softhand_env.soak --steps 1000000 --num-envs 512``.
+Usage: ``python -m softhand_env.tools.soak --steps 1000000 --num-envs 512``.
 
 Steps :class:`~softhand_env.envs.SoftHandVectorEnv` (``gym.make_vec(...,
 vectorization_mode="vector_entry_point")``, NextStep autoreset) with seeded uniform random

@@ -1,11 +1,11 @@
 """Physics of the soft hand: owns the states of N hands, advances them, classifies failures.
 
 :class:`HandPhysics` is the dm_control-style Physics object both environments use: it holds
-the 20-element states of :mod:`softhand_env.model` of N >= 1 hands with their packed
+the 20-element states of :mod:`softhand_env.physics.model` of N >= 1 hands with their packed
 parameters and set-points, advances them together with the lane-batched kernel
-(:func:`softhand_env.kernel.advance_batch`) under constant finger-angle set-points, rolls a
+(:func:`softhand_env.physics.kernel.advance_batch`) under constant finger-angle set-points, rolls a
 hand whose state became non-finite back to its state before the step, classifies every hand's
-failure (:func:`softhand_env.failure.classify`) and reports it in a :class:`StepStatus`
+failure (:func:`softhand_env.physics.failure.classify`) and reports it in a :class:`StepStatus`
 (``strict=True`` raises :class:`PhysicsError` on divergence instead). Environment code reads
 the hands through the named read-outs (``object_pose``, ``finger_angles``, ...), never through
 state indices. Every read-out returns a copy.
@@ -24,9 +24,9 @@ from typing import Any, NamedTuple
 import numpy as np
 from numba import njit
 
-from softhand_env import kernel
-from softhand_env.failure import REASONS, classify
-from softhand_env.model import (
+from softhand_env.physics import kernel
+from softhand_env.physics.failure import REASONS, classify
+from softhand_env.physics.model import (
     DN_1,
     DT_1,
     N_DIAG,
@@ -40,7 +40,7 @@ from softhand_env.model import (
     pack_params,
     pid_torques_batch,
 )
-from softhand_env.params import HandParams
+from softhand_env.physics.params import HandParams
 
 
 class PhysicsError(RuntimeError):
@@ -61,7 +61,7 @@ FLAG_NAMES = {
 
 
 def describe_flags(flags: int) -> list[str]:
-    """Names of the status flags set in ``flags`` (see :mod:`softhand_env.kernel`)."""
+    """Names of the status flags set in ``flags`` (see :mod:`softhand_env.physics.kernel`)."""
     return [name for bit, name in FLAG_NAMES.items() if flags & bit]
 
 
@@ -145,11 +145,11 @@ class StepStatus:
     max_cn : float or ndarray
         Largest |C^N| (m/s) over the visited states (+inf if non-finite in a failed hand).
     failed : bool or ndarray of bool
-        A physical failure (see :mod:`softhand_env.failure`): the episode must end.
+        A physical failure (see :mod:`softhand_env.physics.failure`): the episode must end.
     grasped : bool or ndarray of bool
         Both d_n > 0 and the state did not diverge.
     reason : str, None or ndarray of object
-        Name of the failure reported (:data:`~softhand_env.failure.REASONS`), None if none.
+        Name of the failure reported (:data:`~softhand_env.physics.failure.REASONS`), None if none.
     """
 
     __slots__ = ("_flags", "_diag", "_failed", "_grasped", "_reason", "_batched")
@@ -222,7 +222,7 @@ class StepStatus:
 
 @njit(cache=True)
 def _finish_step(FLAGS, Y, Y_PREV, PRM, DIAG, TIME, ch_limit, dn_limit, base_limit):
-    """After the kernel: classify the hands (:func:`softhand_env.failure.classify`, with the
+    """After the kernel: classify the hands (:func:`softhand_env.physics.failure.classify`, with the
     rollback of non-finite states to ``Y_PREV``) and advance TIME (N,) (s) by the substeps
     taken (``DIAG[:, 2]``), in one compiled call. Returns (failed, grasped, reason codes)."""
     N = Y.shape[0]
@@ -283,7 +283,7 @@ class HandPhysics:
         fingertip radius a, where the model ends).
     base_limit : float
         Allowed reach of a contact circle past its fingertip base before it counts as a
-        failure (1 = none; ``math.inf`` = never), see :func:`softhand_env.contact.beyond_base`.
+        failure (1 = none; ``math.inf`` = never), see :func:`.contact.beyond_base`.
     check_stability : bool
         Warn (``RuntimeWarning``) if ``params.dt`` is beyond RK4's stability limit
         (:func:`warn_if_unstable`); also on :meth:`set_params`.
@@ -426,7 +426,7 @@ class HandPhysics:
         """Advance every hand ``n_substeps`` RK4 substeps holding the set-points ``setpoint``.
 
         A hand whose state became non-finite is rolled back to its state before the step;
-        every hand is then classified (:func:`softhand_env.failure.classify`).
+        every hand is then classified (:func:`softhand_env.physics.failure.classify`).
 
         Parameters
         ----------
