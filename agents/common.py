@@ -226,7 +226,7 @@ def make_vec_env(
 
     def thunk(i: int) -> Callable[[], gym.Env]:
         def _init() -> gym.Env:
-            env = Monitor(make_env(env_id, env_kwargs, env_wrapper))
+            env: gym.Env = Monitor(make_env(env_id, env_kwargs, env_wrapper))
             if seeds is not None:
                 env = GoalSeeds(env, list(seeds)[i::n_envs])
             elif seed is not None:
@@ -384,7 +384,7 @@ def _policy_kwargs(value: dict[str, Any]) -> dict[str, Any]:
     return kwargs
 
 
-def algo_class(algo: str) -> type:
+def algo_class(algo: str) -> Any:
     """The SB3 algorithm class of ``algo``."""
     import importlib
 

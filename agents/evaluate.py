@@ -86,7 +86,7 @@ def parse_args(argv: Sequence[str] | None = None) -> argparse.Namespace:
 def build(args: argparse.Namespace) -> tuple[Any, str, dict[str, Any], Any, str]:
     """Policy, env id, ``gym.make`` keywords, env wrappers and a short name for the output."""
     if args.model is not None:
-        policy = ModelPolicy(args.model, device=args.device)
+        policy: Any = ModelPolicy(args.model, device=args.device)
         if args.env is not None and args.env != policy.env_id:
             raise UserError(f"the model was trained on {policy.env_id}, not {args.env}")
         env_id, kwargs, wrapper = policy.env_id, dict(policy.env_kwargs), policy.env_wrapper
@@ -95,9 +95,10 @@ def build(args: argparse.Namespace) -> tuple[Any, str, dict[str, Any], Any, str]
         from agents.scripted import HandlingProcessPolicy, ModelBasedPolicy, PaperSequencePolicy
 
         goal_policy = args.policy in ("model-based", "loop-plan")
-        env_id = args.env or (None if goal_policy else "SoftHand-v0")
-        if env_id is None:
+        chosen = args.env or (None if goal_policy else "SoftHand-v0")
+        if chosen is None:
             raise UserError(f"--policy {args.policy} needs --env (a goal task)")
+        env_id = chosen
         if args.policy == "paper":
             policy = PaperSequencePolicy()
         elif args.policy == "handling":
@@ -213,7 +214,8 @@ def write_gif(path: Path, env_id: str, kwargs: dict[str, Any], wrapper: Any, pol
     frames: list = []
     ep = run_episode(env, policy, seed, deterministic, frames)
     env.close()
-    shown, duration = gif_frames(frames, env.unwrapped.dt, task_targets(env_id), ep["goal"],
+    shown, duration = gif_frames(frames, env.unwrapped.dt,  # type: ignore[attr-defined]
+                                 task_targets(env_id), ep["goal"],
                                  ep["pose"], fps)
     imageio.mimsave(path, shown, duration=duration, loop=0)
 
@@ -257,7 +259,8 @@ def main(argv: Sequence[str] | None = None) -> dict[str, float]:
         yaml.safe_dump(record, fh, sort_keys=False)
     if not args.no_plots:
         shown = choose_episode(episodes) if args.gif_episode is None else args.gif_episode
-        plot_episodes(out / "trajectories.png", episodes, targets, env.unwrapped.dt, title, shown)
+        plot_episodes(out / "trajectories.png", episodes, targets,
+                      env.unwrapped.dt, title, shown)  # type: ignore[attr-defined]
         write_gif(out / "episode.gif", env_id, kwargs, wrapper, policy, seeds[shown],
                   args.gif_size, not args.stochastic)
     env.close()

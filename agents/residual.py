@@ -87,7 +87,7 @@ class LoopPlanPolicy(ScriptedPolicy):
     @classmethod
     def from_env(cls, env: gym.Env, **kwargs: Any) -> LoopPlanPolicy:
         """Build the plan for a pose env (reads its goal scales and grasp set-point)."""
-        base = env.unwrapped
+        base: Any = env.unwrapped  # a SoftHandEnv
         targets = [(t.name, t.obs_scale) for t in base.task.targets]
         grasp = float(np.degrees(base.config.grasp_setpoint[0]))
         return cls(targets, grasp_deg=grasp, **kwargs)
@@ -155,7 +155,7 @@ class ResidualWrapper(gym.Wrapper):
         self, env: gym.Env, delta_deg: float = 0.5, max_offset_deg: float = 5.0, **plan_kwargs: Any
     ):
         super().__init__(env)
-        actions = env.unwrapped.config.actions
+        actions = env.unwrapped.config.actions  # type: ignore[attr-defined]
         if actions.mode != "absolute" or actions.normalize:
             raise ValueError(
                 'ResidualWrapper needs env kwargs action_mode="absolute", normalize_action=False'
@@ -168,7 +168,7 @@ class ResidualWrapper(gym.Wrapper):
         spec = env.spec
         self.max_steps = int(spec.max_episode_steps) if spec and spec.max_episode_steps else 1000
         self.action_space = spaces.Box(-1.0, 1.0, shape=(2,), dtype=np.float32)
-        inner = env.observation_space
+        inner: Any = env.observation_space  # a Box
         self.observation_space = spaces.Box(
             np.concatenate([inner.low, -np.ones(2), -np.full(2, 100.0), [0.0]]).astype(np.float32),
             np.concatenate([inner.high, np.ones(2), np.full(2, 100.0), [1.0]]).astype(np.float32),
@@ -176,7 +176,7 @@ class ResidualWrapper(gym.Wrapper):
         )
         self._offset = np.zeros(2)
         self._t = 0
-        self._base_obs: np.ndarray | None = None
+        self._base_obs: Any = None  # ndarray after reset
 
     def _planned(self) -> np.ndarray:
         return self.plan.action(0, self._base_obs, self._t)

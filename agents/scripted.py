@@ -9,7 +9,8 @@ observation; the object's state is not) and most of them ignore even that after 
   the finger path of :func:`softhand_env.quasistatic.handling_path` fed as set-points.
 * :class:`ModelBasedPolicy`: the model-based blind baseline of the goal tasks: at the start
   of an episode it plans open-loop set-points with the quasi-static model
-  (:mod:`softhand_env.planner`) for the goal in the observation and then plays them without
+  (:mod:`softhand_env.quasistatic.planner`) for the goal in the observation and then plays them
+  without
   any feedback.
 
 Each policy carries :attr:`env_kwargs`, the ``gym.make`` keywords it needs (they all use
@@ -27,7 +28,7 @@ from typing import Any
 
 import numpy as np
 
-from softhand_env.simulate import PAPER_MOTIONS_DEG
+from softhand_env.tools.simulate import PAPER_MOTIONS_DEG
 
 #: Keywords every scripted policy needs: the action is the set-point pair in radians.
 ABSOLUTE_RAD = {"action_mode": "absolute", "normalize_action": False}
@@ -191,7 +192,7 @@ class ModelBasedPolicy(ScriptedPolicy):
         grasp_angle_deg: float = 6.0,
         step_deg: float = 0.5,
     ):
-        from softhand_env.params import HandParams
+        from softhand_env.physics.params import HandParams
 
         names = tuple(name for name, _ in targets)
         if names not in (("x",), ("theta",), ("x", "theta")):
@@ -218,9 +219,9 @@ class ModelBasedPolicy(ScriptedPolicy):
 
     def plan(self, goal: dict[str, float]) -> np.ndarray:
         """Set-points (K, 2) in rad from the grasp to the goal, sub-sampled to ``step_deg``."""
-        from softhand_env import planner
+        from softhand_env.quasistatic import planner
 
-        kw = {"params": self.params, "grasp_angle": self.grasp_angle}
+        kw: dict[str, Any] = {"params": self.params, "grasp_angle": self.grasp_angle}
         try:
             if "x" in goal and "theta" in goal:
                 try:

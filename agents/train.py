@@ -173,9 +173,9 @@ class HeldOutEvalCallback(EvalCallback):
         for key, value in summary.items():
             if key.startswith("median_") or key.startswith("max_"):
                 self.logger.record(f"eval/final_{key}", value)
-        key = (summary["success_rate"], -error_score(summary, self.targets))
-        if self.best_key is None or key > self.best_key:
-            self.best_key = key
+        rank = (summary["success_rate"], -error_score(summary, self.targets))
+        if self.best_key is None or rank > self.best_key:
+            self.best_key = rank
             self.best_summary = {"timesteps": int(self.num_timesteps), **summary}
             self.best_dir.mkdir(parents=True, exist_ok=True)
             self.model.save(self.best_dir / MODEL_FILE)
@@ -233,7 +233,7 @@ def train(config: dict[str, Any], run_dir: Path, progress_bar: bool = True, verb
         hp["policy"], env, seed=seed, device=config["device"], verbose=verbose,
         tensorboard_log=str(run_dir / "tb"), **kwargs,
     )
-    callbacks = [make_eval_callback(config, run_dir, eval_env)]
+    callbacks: list[Any] = [make_eval_callback(config, run_dir, eval_env)]
     if config.get("save_freq", 0) > 0:
         callbacks.append(
             CheckpointCallback(

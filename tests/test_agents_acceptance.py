@@ -1,8 +1,8 @@
-"""Issue 6's acceptance figures for the shipped agents on the 100 test goals (``slow``).
+"""Acceptance figures for the shipped agents on the 100 test goals (``slow``).
 
 Each shipped model is evaluated on the 100 held-out test goals (``reset(seed=10000 + k)``)
-with the success definition of issue 6 (|x err| < 1 mm and/or |theta err| < 1 deg at the end
-of the episode), next to its scripted baseline on the same goals. Thresholds are the issue's:
+with the benchmark's success definition (|x err| < 1 mm and/or |theta err| < 1 deg at the end
+of the episode), next to its scripted baseline on the same goals. Thresholds:
 Reorient and Translate >= 95 %, Pose >= 80 %, each better than its baseline (by success rate
 where the baseline fails goals, otherwise by the median final error, since the model-based
 baseline already reaches 100 % on the single-coordinate tasks). About 1.5 min on 2 cores.

@@ -11,26 +11,14 @@ import pytest
 import softhand_env  # noqa: F401  (registers the environments)
 from agents.scripted import HandlingProcessPolicy, ModelBasedPolicy, PaperSequencePolicy
 from softhand_env import quasistatic as qs
-from softhand_env.simulate import run_paper_motions
+from softhand_env.tools.simulate import run_paper_motions
 
 
-def rollout(env, policy, seed=0):
-    obs, info = env.reset(seed=seed)
-    infos = [info]
-    state, start = None, np.array([True])
-    while True:
-        action, state = policy.predict(obs, state, start)
-        start = np.array([False])
-        obs, _, terminated, truncated, info = env.step(action)
-        infos.append(info)
-        if terminated or truncated:
-            return infos, terminated
-
-
-def test_chapter5_sequence_through_gym_reproduces_the_dynamic_model_run():
+def test_chapter5_sequence_through_gym_reproduces_the_dynamic_model_run(make_env, rollout):
     policy = PaperSequencePolicy(duration=1.0)
-    env = gym.make("SoftHand-v0", max_episode_steps=policy.episode_steps, **policy.env_kwargs)
-    infos, terminated = rollout(env, policy)
+    env = make_env("SoftHand-v0", max_episode_steps=policy.episode_steps, **policy.env_kwargs)
+    steps = rollout(env, policy=policy)
+    infos, terminated = [s.info for s in steps], steps[-1].terminated
     assert not terminated and len(infos) == 8 * 50 + 1
     assert all(info["grasped"] for info in infos[1:])
     poses = np.array([info["object_pose"] for info in infos])
@@ -40,10 +28,11 @@ def test_chapter5_sequence_through_gym_reproduces_the_dynamic_model_run():
 
 
 @pytest.mark.parametrize("grasp_deg", [2.4, 3.6, 4.8, 6.0, 7.2])
-def test_chapter4_handling_process_keeps_grasp_and_matches_quasistatic(grasp_deg):
+def test_chapter4_handling_process_keeps_grasp_and_matches_quasistatic(grasp_deg, make_env,
+                                                                         rollout):
     policy = HandlingProcessPolicy(grasp_deg)
-    env = gym.make("SoftHand-v0", max_episode_steps=policy.episode_steps, **policy.env_kwargs)
-    infos, _ = rollout(env, policy)
+    env = make_env("SoftHand-v0", max_episode_steps=policy.episode_steps, **policy.env_kwargs)
+    infos = [s.info for s in rollout(env, policy=policy)]
     end6 = policy.end_of_operation(6)
     # operation 7 opens the hand back to 0 deg and releases the object (physically right);
     # through operations 1-6 the grasp must hold
@@ -64,10 +53,11 @@ def test_chapter4_handling_process_keeps_grasp_and_matches_quasistatic(grasp_deg
         ("SoftHandReorient-v0", {"theta_tolerance_deg": 1.0}),
     ],
 )
-def test_model_based_baseline_reaches_single_coordinate_goals(env_id, kwargs):
-    env = gym.make(env_id, action_mode="absolute", normalize_action=False, **kwargs)
+def test_model_based_baseline_reaches_single_coordinate_goals(env_id, kwargs, make_env,
+                                                              rollout):
+    env = make_env(env_id, action_mode="absolute", normalize_action=False, **kwargs)
     policy = ModelBasedPolicy.from_env(env)
-    results = [rollout(env, policy, seed=100 + k)[0][-1]["is_success"] for k in range(5)]
+    results = [rollout(env, 100 + k, policy=policy)[-1].info["is_success"] for k in range(5)]
     # measured 20/20 on seeds 1000-1019; open-loop, so a few misses would not be a bug
     assert np.mean(results) >= 0.8
 
@@ -77,7 +67,7 @@ def test_model_based_baseline_decodes_the_goal_from_the_observation():
     policy = ModelBasedPolicy.from_env(env)
     obs, _ = env.reset(seed=3)
     goal = policy.goal(obs)
-    true_goal = env.unwrapped._goal
+    true_goal = env.unwrapped.goal
     assert goal["x"] == pytest.approx(true_goal[0], rel=1e-6)
     assert goal["theta"] == pytest.approx(true_goal[1], rel=1e-6)
 

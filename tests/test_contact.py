@@ -1,4 +1,5 @@
-"""Tests of the soft-fingertip contact models (softhand_env.contact, chapters 2, 3 and Eq 5.4).
+"""Tests of the soft-fingertip contact models (softhand_env.physics.contact, chapters 2, 3 and Eq
+5.4).
 
 Tolerances state the measured error and why the margin is what it is.  Independent references
 (used to check the numerical integrals, not the closed forms against themselves):
@@ -22,7 +23,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from scipy import integrate, optimize
 
-from softhand_env import contact as c
+from softhand_env.physics import contact as c
 
 A = 0.020  # fingertip radius of the experiments, m
 E2 = c.E_CH2

@@ -15,8 +15,8 @@ import numpy as np
 import pytest
 
 from softhand_env import quasistatic as qs
-from softhand_env.params import load_hand_params
 from softhand_env.physics import HandPhysics
+from softhand_env.physics.params import load_hand_params
 
 GRASP = math.radians(6.0)
 ROT = math.radians(20.0)

@@ -19,9 +19,10 @@ import yaml
 
 import softhand_env
 from softhand_env.envs import ENV_IDS, SoftHandEnv
-from softhand_env.envs.tasks import GOAL_TERMS, REASONS
-from softhand_env.model import DN_1, DN_2, TH_OBJ, X_OBJ, initial_state
-from softhand_env.params import load_hand_params
+from softhand_env.envs.tasks import GOAL_TERMS
+from softhand_env.physics.failure import REASONS
+from softhand_env.physics.model import DN_1, DN_2, TH_OBJ, X_OBJ, initial_state
+from softhand_env.physics.params import load_hand_params
 
 ROOT = Path(softhand_env.__file__).resolve().parent
 IDS = list(ENV_IDS)
@@ -29,24 +30,12 @@ GOAL_IDS = [i for i in IDS if ENV_IDS[i] != "none"]
 REQUIRED_INFO = ("object_pose", "deformation", "constraint_error", "grasped", "is_success")
 
 
-def rollout(env, seed, actions):
-    """(obs, reward, terminated, truncated, object_pose) per step, resetting on episode end."""
-    out = []
-    obs, info = env.reset(seed=seed)
-    out.append((obs, 0.0, False, False, info["object_pose"]))
-    for a in actions:
-        obs, r, te, tr, info = env.step(a)
-        out.append((obs, r, te, tr, info["object_pose"]))
-        if te or tr:
-            env.reset()
-    return out
-
-
 def assert_same(a, b):
-    for (o1, r1, te1, tr1, p1), (o2, r2, te2, tr2, p2) in zip(a, b, strict=True):
-        np.testing.assert_array_equal(o1, o2)
-        np.testing.assert_array_equal(p1, p2)
-        assert (r1, te1, tr1) == (r2, te2, tr2)
+    for s1, s2 in zip(a, b, strict=True):
+        np.testing.assert_array_equal(s1.obs, s2.obs)
+        np.testing.assert_array_equal(s1.info["object_pose"], s2.info["object_pose"])
+        assert (s1.reward, s1.terminated, s1.truncated) == (s2.reward, s2.terminated,
+                                                            s2.truncated)
 
 
 # ------------------------------------------------------------------------------ registration
@@ -144,12 +133,34 @@ def test_arguments_table_matches_signature():
         assert typ.split()[0] in str(p.annotation), (name, typ, p.annotation)
 
 
+def test_env_options_record_every_keyword_with_its_default():
+    from dataclasses import fields
+
+    from softhand_env.envs.options import EnvOptions
+
+    params = [p for p in inspect.signature(SoftHandEnv.__init__).parameters.values()][1:]
+    assert [(f.name, f.default) for f in fields(EnvOptions)] == [(p.name, p.default)
+                                                                  for p in params]
+    env = gym.make("SoftHandReorient-v0", hand_overrides={"Kp": 12.0}).unwrapped
+    assert env.options.task == "reorient" and env.options.hand_overrides == {"Kp": 12.0}
+    with pytest.raises(TypeError, match="colour"):
+        EnvOptions(colour="red")
+
+
 def test_manual_ids_table_matches_registry():
     rows = re.findall(r"^\s*\| `(\S+-v0)`\s*\| `(\w+)`\s*\|[^|]+\|\s*(\d+) \(",
                       SoftHandEnv.__doc__, flags=re.M)
     assert {r[0] for r in rows} == set(ENV_IDS)
     for env_id, task, steps in rows:
         assert ENV_IDS[env_id] == task and gym.spec(env_id).max_episode_steps == int(steps)
+
+
+def test_reward_threshold_is_registered_for_goal_tasks_only():
+    assert gym.spec("SoftHand-v0").reward_threshold is None
+    for env_id in GOAL_IDS:
+        spec = gym.spec(env_id)
+        task = gym.make(env_id).unwrapped.task
+        assert spec.reward_threshold == spec.max_episode_steps * task.goal_weight > 0
 
 
 def test_manual_has_gymnasium_sections_in_order():
@@ -204,15 +215,15 @@ def test_invalid_keywords_raise_clear_errors(kwargs, match):
 
 # ------------------------------------------------------------------------------- seeding
 @pytest.mark.parametrize("env_id", GOAL_IDS)
-def test_same_seed_bit_identical_trajectories(env_id):
+def test_same_seed_bit_identical_trajectories(env_id, make_env, rollout):
     kwargs = {"randomize": True, "reset_noise_deg": 0.5, "max_episode_steps": 15}
     actions = np.random.default_rng(1).uniform(-1, 1, (40, 2)).astype(np.float32)
-    a = rollout(gym.make(env_id, **kwargs), 7, actions)
-    b = rollout(gym.make(env_id, **kwargs), 7, actions)
+    a = rollout(make_env(env_id, **kwargs), 7, actions, on_end="reset")
+    b = rollout(make_env(env_id, **kwargs), 7, actions, on_end="reset")
     assert_same(a, b)
     # and the seed matters (goal, parameters and noise differ)
-    c = rollout(gym.make(env_id, **kwargs), 8, actions)
-    assert not np.array_equal(a[0][0], c[0][0])
+    c = rollout(make_env(env_id, **kwargs), 8, actions, on_end="reset")
+    assert not np.array_equal(a[0].obs, c[0].obs)
 
 
 def test_seed_controls_goal_and_goal_in_range():
@@ -349,6 +360,7 @@ def test_info_keys_and_reward_is_sum_of_terms(env_id):
     for key in REQUIRED_INFO + terms:
         assert key in info, key
     assert all(info[t] == 0.0 for t in terms)
+    assert info["termination_reason"] is None
     rng = np.random.default_rng(0)
     for _ in range(30):
         _, reward, terminated, _, info = env.step(rng.uniform(-1, 1, 2).astype(np.float32))
@@ -364,7 +376,7 @@ def test_info_keys_and_reward_is_sum_of_terms(env_id):
             assert info["termination_reason"] in REASONS
             env.reset()
         else:
-            assert "termination_reason" not in info
+            assert info["termination_reason"] is None  # in every info, None while running
 
 
 def test_reward_terms_follow_their_formulas():
@@ -411,19 +423,20 @@ def test_physical_failures_terminate_with_reason(setpoint_deg, reason):
 
 
 def test_nonfinite_state_rolls_back_and_terminates(monkeypatch):
-    from softhand_env import kernel
+    from softhand_env.physics import kernel
 
     env = gym.make("SoftHandReorient-v0").unwrapped
     env.reset(seed=0)
     before = env.physics.get_state()
-    real_step = env.physics.step
+    real_advance = kernel.advance_batch
 
-    def poisoned(setpoint, n_substeps, strict=True):
-        status = real_step(setpoint, n_substeps, strict)
-        env.physics._y[:] = np.nan  # what a blown-up integration leaves behind
-        return type(status)(kernel.FLAG_NONFINITE, status.substeps, status.max_ch, np.nan)
+    def poisoned(Y, U, PRM, n, ch_limit, DIAG, FLAGS):
+        real_advance(Y, U, PRM, n, ch_limit, DIAG, FLAGS)
+        Y[:] = np.nan  # what a blown-up integration leaves behind
+        FLAGS[:] = kernel.FLAG_NONFINITE
+        DIAG[:, 1] = np.nan
 
-    monkeypatch.setattr(env.physics, "step", poisoned)
+    monkeypatch.setattr(kernel, "advance_batch", poisoned)
     obs, reward, terminated, _, info = env.step(np.zeros(2, dtype=np.float32))
     assert terminated and info["termination_reason"] == "nonfinite_state"
     assert np.isfinite(obs).all() and np.isfinite(reward)

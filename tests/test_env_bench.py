@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from softhand_env import bench_env
+from softhand_env.tools import bench_env
 
 
 def test_bench_env_runs_and_reports_every_mode(capsys):

@@ -18,7 +18,7 @@ from softhand_env.envs.observation import (
     VELOCITY_SCALE,
     ObservationLayout,
 )
-from softhand_env.model import NQ, TH_1, TH_OBJ, X_OBJ, Y_OBJ
+from softhand_env.physics.model import NQ, TH_1, TH_OBJ, X_OBJ, Y_OBJ
 
 MODES = ["proprio", "proprio_tactile"]
 

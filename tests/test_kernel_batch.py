@@ -15,9 +15,9 @@ import platform
 import numpy as np
 import pytest
 
-from softhand_env import kernel, model
-from softhand_env.model import DN_1, NQ, NY, TH_1, pack_params
-from softhand_env.params import HandParams
+from softhand_env.physics import kernel, model
+from softhand_env.physics.model import DN_1, NQ, NY, TH_1, pack_params
+from softhand_env.physics.params import HandParams
 
 PARAMS = HandParams()
 CH_LIMIT = kernel.CH_LIMIT

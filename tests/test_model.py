@@ -1,6 +1,6 @@
 """Verification of the chapter-5 model terms independently of their derivation.
 
-Every term in softhand_env.model is checked against something it was not built from:
+Every term in softhand_env.physics.model is checked against something it was not built from:
 finite differences of the constraint and energy functions, the printed Eq 5.25-5.30
 (where not misprinted), and the geometric definition of the rolling constraint.
 """
@@ -12,8 +12,8 @@ import math
 import numpy as np
 import pytest
 
-from softhand_env import model
-from softhand_env.model import (
+from softhand_env.physics import model
+from softhand_env.physics.model import (
     DN_1,
     DT_1,
     NQ,
@@ -27,7 +27,7 @@ from softhand_env.model import (
     potential_energy,
     potential_forces,
 )
-from softhand_env.params import HandParams
+from softhand_env.physics.params import HandParams
 
 PARAMS = HandParams()
 PRM = pack_params(PARAMS)

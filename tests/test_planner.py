@@ -1,4 +1,4 @@
-"""Tests of the quasi-static planners (softhand_env.planner)."""
+"""Tests of the quasi-static planners (softhand_env.quasistatic.planner)."""
 
 from __future__ import annotations
 
@@ -7,9 +7,9 @@ import math
 import numpy as np
 import pytest
 
-from softhand_env import planner as pl
 from softhand_env import quasistatic as qs
-from softhand_env.params import load_hand_params
+from softhand_env.physics.params import load_hand_params
+from softhand_env.quasistatic import planner as pl
 
 DEG = math.pi / 180
 
@@ -122,7 +122,7 @@ def test_plan_pose_input_validation(params):
 
 @pytest.mark.parametrize("target_deg", [-12.0, 3.0, 15.0])
 def test_plan_reorientation_round_trip(target_deg):
-    from softhand_env.planner import plan_reorientation
+    from softhand_env.quasistatic.planner import plan_reorientation
 
     target = math.radians(target_deg)
     plan = plan_reorientation(target)
@@ -133,7 +133,7 @@ def test_plan_reorientation_round_trip(target_deg):
 
 
 def test_plan_reorientation_rejects_unreachable_targets():
-    from softhand_env.planner import plan_reorientation
+    from softhand_env.quasistatic.planner import plan_reorientation
 
     with pytest.raises(ValueError, match="target_theta"):
         plan_reorientation(math.radians(40.0))

@@ -12,7 +12,7 @@ import pytest
 from scipy.optimize import minimize_scalar
 
 from softhand_env import quasistatic as qs
-from softhand_env.params import load_hand_params
+from softhand_env.physics.params import load_hand_params
 
 DEG = math.pi / 180
 
@@ -39,7 +39,7 @@ def grasp6(params):
 
 
 def test_energy_scalar_matches_contact_closed_form():
-    contact = pytest.importorskip("softhand_env.contact")
+    contact = pytest.importorskip("softhand_env.physics.contact")
     d = np.array([0.0, 1e-3, 5e-3, 9e-3])
     tp = np.array([0.0, 0.3, -0.5, 0.7])
     E = 0.30378e6
@@ -50,7 +50,7 @@ def test_energy_scalar_matches_contact_closed_form():
 @pytest.mark.parametrize("scheme", [0, 1])
 def test_terms_derivatives_match_finite_differences(params, scheme):
     """Analytic J, Hessians of the constraints, grad P and Hess P vs central differences."""
-    prm = qs._pack(params)
+    prm = qs.solver._pack(params)
     rng = np.random.default_rng(1)
     z = np.array([0.004, 0.072, -0.15, 0.007, 0.0085])
     zp = z + rng.normal(scale=[1e-4, 1e-4, 2e-3, 1e-5, 1e-5])
@@ -60,7 +60,7 @@ def test_terms_derivatives_match_finite_differences(params, scheme):
 
     def ev(zz):
         out = (np.zeros(4), np.zeros((4, 5)), np.zeros((4, 5, 5)), np.zeros(5), np.zeros((5, 5)))
-        P = qs._terms(zz, th, zp, thp, sp, prm, scheme, *out)
+        P = qs.solver._terms(zz, th, zp, thp, sp, prm, scheme, *out)
         return (P, *out)
 
     P, g, J, Hg, gP, HP = ev(z)
@@ -407,7 +407,7 @@ def test_figure_command_writes_pngs(tmp_path, capsys):
 
 
 def test_benchmark_runs_under_budget(capsys):
-    from softhand_env import bench_quasistatic
+    from softhand_env.tools import bench_quasistatic
 
     assert bench_quasistatic.main(["--repeat", "1"]) == 0
     r = bench_quasistatic.bench(repeat=1)

@@ -1,4 +1,4 @@
-"""Determinism (issue 7): the same seed and actions give bit-identical trajectories in other
+"""Determinism: the same seed and actions give bit-identical trajectories in other
 processes (Stable-Baselines3 ``SubprocVecEnv``, Gymnasium ``AsyncVectorEnv`` with fresh
 ``spawn`` interpreters) and after any earlier episodes (no state leaks through ``reset``:
 PID integral, observation history, randomised parameters, grasp cache, random streams).
@@ -89,48 +89,37 @@ def test_gymnasium_async_spawn_is_bit_identical_to_sync():
 
 
 # ------------------------------------------------------------------ no leaks through reset
-def _episode(env, seed, actions):
-    """Everything observable of one episode: per step obs, reward, flags, info arrays, the full
-    physics state (incl. the PID integrals) and the hand parameters."""
-    base = env.unwrapped
-    obs, info = env.reset(seed=seed)
-    rows = [(obs, 0.0, False, info, base.physics.get_state(), base.physics.params)]
-    for a in actions:
-        obs, reward, terminated, truncated, info = env.step(a)
-        rows.append((obs, reward, terminated, info, base.physics.get_state(),
-                     base.physics.params))
-        if terminated or truncated:
-            break
-    return rows
-
-
 def _assert_same_episode(a, b):
+    """Everything observable of two episodes (:func:`conftest.run_rollout`) is the same: per
+    step obs, reward, flags, info arrays, the full physics state (incl. the PID integrals) and
+    the hand parameters."""
     assert len(a) == len(b)
-    for (o1, r1, t1, i1, y1, p1), (o2, r2, t2, i2, y2, p2) in zip(a, b, strict=True):
-        np.testing.assert_array_equal(o1, o2)
-        np.testing.assert_array_equal(y1, y2)
-        assert (r1, t1) == (r2, t2) and p1 == p2
-        assert sorted(i1) == sorted(i2)
-        for key in i1:
-            np.testing.assert_array_equal(i1[key], i2[key], err_msg=key)
+    for s1, s2 in zip(a, b, strict=True):
+        np.testing.assert_array_equal(s1.obs, s2.obs)
+        np.testing.assert_array_equal(s1.state, s2.state)
+        assert (s1.reward, s1.terminated) == (s2.reward, s2.terminated)
+        assert s1.params == s2.params
+        assert sorted(s1.info) == sorted(s2.info)
+        for key in s1.info:
+            np.testing.assert_array_equal(s1.info[key], s2.info[key], err_msg=key)
 
 
 @pytest.mark.parametrize("randomize", [False, True])
-def test_reset_with_a_seed_forgets_every_earlier_episode(randomize):
+def test_reset_with_a_seed_forgets_every_earlier_episode(randomize, make_env, rollout):
     kw = {**KW, "randomize": randomize, "reset_noise_deg": 1.0 if randomize else 0.0}
     acts_a = _actions(30, seed=2)
     acts_b = np.concatenate([_actions(10, seed=3), np.ones((40, 2), np.float32)])
-    env = gym.make(POSE, **kw)
-    first = _episode(env, 1, acts_a)
-    other = _episode(env, 2, acts_b)  # ends by squeezing until over-compressed
-    assert other[-1][2] and other[-1][3]["termination_reason"] == "overcompressed"
-    _episode(env, 3, _actions(5, seed=4))  # and a short one, cut mid-episode
-    again = _episode(env, 1, acts_a)
-    fresh = _episode(gym.make(POSE, **kw), 1, acts_a)
+    env = make_env(POSE, **kw)
+    first = rollout(env, 1, acts_a)
+    other = rollout(env, 2, acts_b)  # ends by squeezing until over-compressed
+    assert other[-1].terminated and other[-1].info["termination_reason"] == "overcompressed"
+    rollout(env, 3, _actions(5, seed=4))  # and a short one, cut mid-episode
+    again = rollout(env, 1, acts_a)
+    fresh = rollout(make_env(POSE, **kw), 1, acts_a)
     _assert_same_episode(first, fresh)
     _assert_same_episode(again, fresh)
     if randomize:  # the seed really drives the parameters
-        assert other[0][5] != first[0][5]
+        assert other[0].params != first[0].params
 
 
 def test_native_vector_env_reset_forgets_and_envs_do_not_interact():

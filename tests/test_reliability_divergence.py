@@ -1,4 +1,4 @@
-"""Divergence handling (issue 7): every way out of the model's validity ends the episode with
+"""Divergence handling: every way out of the model's validity ends the episode with
 its reason, nothing non-finite escapes, the next ``reset`` recovers completely, and the native
 vector env does exactly what independent single envs do.
 
@@ -32,9 +32,9 @@ from gymnasium.vector import SyncVectorEnv
 from test_reliability_invariants import base_overshoot, check_transition
 
 import softhand_env  # noqa: F401  (registers the environments)
-from softhand_env import kernel
 from softhand_env.envs import SoftHandVectorEnv
-from softhand_env.simulate import PAPER_MOTIONS_DEG
+from softhand_env.physics import kernel
+from softhand_env.tools.simulate import PAPER_MOTIONS_DEG
 
 RAD = {"action_mode": "absolute", "normalize_action": False}
 UNSTABLE_NAN = {"alpha": 1e7, "dt": 2e-4, "M_deform": 100.0}
@@ -126,7 +126,7 @@ def test_native_vector_env_handles_divergence_like_single_envs(name):
     actions = np.array([np.radians(slam_deg), BENIGN])
     ended = 0
     for _ in range(25):
-        Y_before = native._Y.copy()
+        Y_before = native.physics.get_state()
         o1, r1, te1, tr1, i1 = native.step(actions)
         o2, r2, te2, tr2, i2 = single.step(actions)
         assert np.isfinite(o1).all() and np.isfinite(r1).all()
@@ -144,7 +144,8 @@ def test_native_vector_env_handles_divergence_like_single_envs(name):
             np.testing.assert_allclose(i1[key], i2[key], rtol=1e-12, atol=1e-15, err_msg=key)
             assert not np.isnan(i1[key]).any(), key
         nonfinite = (i1["physics_flags"] & kernel.FLAG_NONFINITE) != 0
-        np.testing.assert_array_equal(native._Y[nonfinite], Y_before[nonfinite])  # rolled back
+        rolled_back = native.physics.get_state()[nonfinite]
+        np.testing.assert_array_equal(rolled_back, Y_before[nonfinite])
         ended += int(te1[0])
     assert ended >= 1  # env 0 failed (and was restarted) at least once
     native.close()

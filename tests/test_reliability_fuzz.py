@@ -1,4 +1,4 @@
-"""Property-based fuzzing (issue 7): action sequences, ``gym.make`` keywords and hand YAML files.
+"""Property-based fuzzing: action sequences, ``gym.make`` keywords and hand YAML files.
 
 Properties:
 
@@ -35,8 +35,8 @@ import softhand_env  # noqa: F401  (registers the environments)
 from softhand_env.envs import ENV_IDS, SoftHandEnv, SoftHandVectorEnv
 from softhand_env.envs.task_configs import load_task_config
 from softhand_env.envs.tasks import TASK_KWARGS
-from softhand_env.params import _RANGES, YAML_KEYS, HandParams, hand_params_from_dict
 from softhand_env.physics import PhysicsError
+from softhand_env.physics.params import _RANGES, YAML_KEYS, HandParams, hand_params_from_dict
 
 TASK_IDS = {task: env_id for env_id, task in ENV_IDS.items()}
 TASKS = tuple(TASK_IDS)
@@ -529,7 +529,7 @@ def test_malformed_yaml_is_a_value_error_naming_the_file(text):
 @fuzz(60)
 @given(data=hand_yaml(), hand_base=st.sampled_from(["paper_ch5", "paper_ch4"]))
 def test_valid_hand_yaml_loads_and_round_trips(data, hand_base):
-    from softhand_env.params import load_hand_params
+    from softhand_env.physics.params import load_hand_params
 
     base = load_hand_params(hand_base)
     params = hand_params_from_dict(data, base=base)

@@ -1,10 +1,11 @@
-"""Invariants of every environment transition, shared by the reliability tests (issue 7).
+"""Invariants of every environment transition, shared by the reliability tests.
 
 :func:`check_transition` is the oracle the fuzzers (``test_reliability_fuzz.py``) and the
 divergence tests (``test_reliability_divergence.py``) apply after every ``step``: finite
 observation inside the space, finite reward equal to the sum of its terms, finite info, and a
 termination reason that agrees with the state it reports. It recomputes the fingertip-base
-criterion from :func:`softhand_env.contact.max_contact_angle` (chapter 2), not from the env's
+criterion from :func:`softhand_env.physics.contact.max_contact_angle` (chapter 2), not from the
+env's
 own code. The tests in this file show that the oracle does reject wrong transitions.
 """
 
@@ -18,10 +19,10 @@ import numpy as np
 import pytest
 
 import softhand_env  # noqa: F401  (registers the environments)
-from softhand_env import kernel
-from softhand_env.contact import max_contact_angle
-from softhand_env.envs.tasks import REASONS
-from softhand_env.model import DN_1, DN_2, TH_1, TH_2, TH_OBJ
+from softhand_env.physics import kernel
+from softhand_env.physics.contact import max_contact_angle
+from softhand_env.physics.failure import REASONS
+from softhand_env.physics.model import DN_1, DN_2, TH_1, TH_2, TH_OBJ
 
 REQUIRED_INFO = ("object_pose", "deformation", "constraint_error", "grasped", "is_success")
 

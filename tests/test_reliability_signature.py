@@ -1,4 +1,4 @@
-"""Model files (issue 7): a model whose env version or observation/action layout differs from
+"""Model files: a model whose env version or observation/action layout differs from
 the evaluation env is refused with a ``ValueError`` naming the differing field."""
 
 from __future__ import annotations

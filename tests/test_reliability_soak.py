@@ -16,8 +16,8 @@ ROOT = Path(softhand_env.__file__).resolve().parent.parent
 
 
 def run_soak(*args: str, timeout: float = 300) -> dict:
-    """Run ``python -m softhand_env.soak ... --json`` in a fresh process; its figures."""
-    cmd = [sys.executable, "-m", "softhand_env.soak", *args, "--json"]
+    """Run ``python -m softhand_env.tools.soak ... --json`` in a fresh process; its figures."""
+    cmd = [sys.executable, "-m", "softhand_env.tools.soak", *args, "--json"]
     env = {**os.environ, "PYTHONPATH": os.pathsep.join(filter(None, [str(ROOT),
                                                                       os.environ.get("PYTHONPATH")]))}
     run = subprocess.run(cmd, capture_output=True, text=True, timeout=timeout, env=env, cwd=ROOT)
@@ -40,7 +40,7 @@ def test_soak_smoke_run_reports_consistent_figures():
 
 
 def test_soak_format_is_readable():
-    from softhand_env.soak import SoakResult, format_result
+    from softhand_env.tools.soak import SoakResult, format_result
 
     text = format_result(SoakResult("SoftHand-v0", 2, 100, 1.0, 100.0, 3, 1,
                                     {"grasp_lost": 2}, 0, 100.0, 101.0, 1.0, 99.0, 100.0))
@@ -49,7 +49,7 @@ def test_soak_format_is_readable():
 
 @pytest.mark.slow
 def test_soak_one_million_steps_keeps_memory_flat():
-    """Issue 7's soak: 1,000,000 env steps of random actions on 512 envs; peak RSS must grow
+    """Soak: 1,000,000 env steps of random actions on 512 envs; peak RSS must grow
     by < 5 % and nothing may become non-finite (12 s on 2 idle cores)."""
     r = run_soak("--steps", "1000000", "--num-envs", "512", timeout=1800)
     assert r["env_steps"] >= 1_000_000 and r["nonfinite"] == 0

@@ -12,13 +12,15 @@ id                          task         goal
 ==========================  ===========  ==================================================
 
 all with the entry point :class:`SoftHandEnv` (the task is a keyword), ``max_episode_steps``
-from ``configs/tasks/<task>.yaml`` and the vector entry point :class:`SoftHandVectorEnv`
+from ``configs/tasks/<task>.yaml``, ``reward_threshold`` (:func:`reward_threshold`) and the
+vector entry point :class:`SoftHandVectorEnv`
 (``gym.make_vec(id, num_envs=N, vectorization_mode="vector_entry_point")``). Registration
 imports only Gymnasium and PyYAML; the physics is imported when an environment is made.
 
 Modules: :mod:`.softhand` (the env and its manual), :mod:`.vector` (batched env),
-:mod:`.tasks`, :mod:`.task_configs`, :mod:`.actions`, :mod:`.observation`,
-:mod:`.randomization`, :mod:`.start` (grasp phase), :mod:`.config`, :mod:`.rendering`.
+:mod:`.transition` (the control step both run), :mod:`.tasks`, :mod:`.task_configs`,
+:mod:`.actions`, :mod:`.observation`, :mod:`.randomization`, :mod:`.start` (grasp phase),
+:mod:`.config`, :mod:`.rendering`.
 """
 
 from __future__ import annotations
@@ -37,6 +39,20 @@ ENTRY_POINT = "softhand_env.envs.softhand:SoftHandEnv"
 VECTOR_ENTRY_POINT = "softhand_env.envs.vector:SoftHandVectorEnv"
 
 
+def reward_threshold(task_config: dict[str, Any]) -> float | None:
+    """Episode return at which a goal task counts as solved: ``max_episode_steps *
+    goal_weight`` (None for the task ``none``, which has no reward).
+
+    Per step, ``reward_goal`` stays below ``goal_weight`` (it equals it only with zero error),
+    so an average of ``goal_weight`` per step is reached only by episodes that spend a good part
+    of their time within the success tolerance (where ``reward_success`` is added), e.g. about
+    a third of the steps if the rest average half the goal reward.
+    """
+    if "goal_weight" not in task_config:
+        return None
+    return float(task_config["max_episode_steps"]) * float(task_config["goal_weight"])
+
+
 def register_envs() -> None:
     """Register every id of :data:`ENV_IDS` with Gymnasium (idempotent)."""
     import gymnasium as gym
@@ -46,11 +62,13 @@ def register_envs() -> None:
     for env_id, task in ENV_IDS.items():
         if env_id in gym.registry:
             continue
+        config = load_task_config(task)
         gym.register(
             id=env_id,
             entry_point=ENTRY_POINT,
             vector_entry_point=VECTOR_ENTRY_POINT,
-            max_episode_steps=int(load_task_config(task)["max_episode_steps"]),
+            max_episode_steps=int(config["max_episode_steps"]),
+            reward_threshold=reward_threshold(config),
             kwargs={"task": task},
         )
 
@@ -67,4 +85,4 @@ def __getattr__(name: str) -> Any:
     raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
 
-__all__ = ["ENV_IDS", "SoftHandEnv", "SoftHandVectorEnv", "register_envs"]
+__all__ = ["ENV_IDS", "SoftHandEnv", "SoftHandVectorEnv", "register_envs", "reward_threshold"]

@@ -1,7 +1,7 @@
 """Validated, resolved environment configuration shared by the single and the vector env.
 
-:func:`build_config` turns the keyword arguments of :class:`~softhand_env.envs.SoftHandEnv`
-(whose signature is the single source of the defaults) into an :class:`EnvConfig`: hand
+:func:`build_config` turns the keywords of :class:`~softhand_env.envs.SoftHandEnv`, collected
+in an :class:`~softhand_env.envs.options.EnvOptions`, into an :class:`EnvConfig`: hand
 parameters loaded from ``configs/hand/<hand>.yaml``, the task with its defaults from
 ``configs/tasks/<task>.yaml``, the action map, the observation layout, the control period in
 substeps and the randomisation settings.
@@ -18,9 +18,10 @@ import numpy as np
 
 from softhand_env.envs.actions import ActionMap
 from softhand_env.envs.observation import ObservationLayout
+from softhand_env.envs.options import EnvOptions
 from softhand_env.envs.randomization import PRESET, Randomization
 from softhand_env.envs.tasks import TASK_KWARGS, Task, make_task
-from softhand_env.params import HandParams, is_finite_real, load_hand_params
+from softhand_env.physics.params import HandParams, is_finite_real, load_hand_params
 
 #: Allowed ``render_mode`` values.
 RENDER_MODES = ("human", "rgb_array")
@@ -53,8 +54,8 @@ class EnvConfig:
     ch_limit : float
         Divergence limit on |C^H| (m).
     base_limit : float
-        1 + ``base_tolerance``: a contact past its fingertip base fails when
-        :func:`~softhand_env.envs.tasks.base_ratio` exceeds this.
+        1 + ``base_tolerance``: a contact past its fingertip base fails when it reaches past
+        the base by more than this (:func:`softhand_env.physics.contact.beyond_base`).
     render_mode : str or None
     render_size : (int, int)
         Frame (width, height) in pixels.
@@ -107,90 +108,70 @@ def _flag(name: str, value: Any) -> bool:
     return bool(value)
 
 
-def build_config(
-    *,
-    task: str,
-    action_mode: str,
-    normalize_action: bool,
-    max_delta_deg: float,
-    joint_range_deg: Sequence[float],
-    control_dt: float,
-    obs_mode: str,
-    history_len: int,
-    grasp_setpoint_deg: Sequence[float],
-    grasp_duration: float,
-    reset_noise_deg: float,
-    hand: str,
-    hand_overrides: Mapping[str, Any] | None,
-    overcompression_ratio: float,
-    ch_limit: float,
-    base_tolerance: float,
-    randomize: bool,
-    render_mode: str | None,
-    render_width: int,
-    render_height: int,
-    **rest: Any,
-) -> EnvConfig:
+def build_config(options: EnvOptions) -> EnvConfig:
     """Validate the environment keywords and resolve them into an :class:`EnvConfig`.
 
-    ``rest`` holds the task keywords (:data:`~softhand_env.envs.tasks.TASK_KWARGS`) and the
-    randomisation keywords (``rand_*``, ``obs_noise``). Raises ``ValueError`` naming the keyword.
+    Raises ``ValueError`` naming the keyword.
     """
-    task_kw = {k: rest.pop(k) for k in TASK_KWARGS if k in rest}
-    rand_kw = {k: rest.pop(k) for k in PRESET if k in rest}
-    if rest:
-        raise TypeError(f"unexpected keyword arguments {sorted(rest)}")
+    o = options
+    task_kw = {k: getattr(o, k) for k in TASK_KWARGS}
+    rand_kw = {k: getattr(o, k) for k in PRESET}
+    hand_overrides = o.hand_overrides
     if hand_overrides is not None and not isinstance(hand_overrides, Mapping):
         raise ValueError(
             f"hand_overrides must be None or a dict of HandParams fields (got {hand_overrides!r})"
         )
-    params = load_hand_params(hand, **dict(hand_overrides or {}))
-    joint_range = _pair("joint_range_deg", joint_range_deg)
-    grasp = _pair("grasp_setpoint_deg", grasp_setpoint_deg)
+    params = load_hand_params(o.hand, **dict(hand_overrides or {}))
+    joint_range = _pair("joint_range_deg", o.joint_range_deg)
+    grasp = _pair("grasp_setpoint_deg", o.grasp_setpoint_deg)
     if not all(joint_range[0] <= g <= joint_range[1] for g in grasp):
         raise ValueError(
             f"grasp_setpoint_deg must lie within joint_range_deg {list(joint_range)} "
-            f"(got {grasp_setpoint_deg!r})"
+            f"(got {o.grasp_setpoint_deg!r})"
         )
-    control_dt = _number("control_dt", control_dt, 0.0)
+    control_dt = _number("control_dt", o.control_dt, 0.0)
     n_substeps = round(control_dt / params.dt)
     if n_substeps < 1 or abs(n_substeps * params.dt - control_dt) > 1e-9:
         raise ValueError(
             f"control_dt must be a positive multiple of the RK4 substep {params.dt:g} s "
-            f"(got {control_dt!r})"
+            f"(got {o.control_dt!r})"
         )
-    grasp_duration = _number("grasp_duration", grasp_duration, 0.0)
+    grasp_duration = _number("grasp_duration", o.grasp_duration, 0.0)
     n_grasp = round(grasp_duration / params.dt)
     if abs(n_grasp * params.dt - grasp_duration) > 1e-9:
         raise ValueError(
             f"grasp_duration must be a multiple of the RK4 substep {params.dt:g} s "
-            f"(got {grasp_duration!r})"
+            f"(got {o.grasp_duration!r})"
         )
-    if render_mode is not None and render_mode not in RENDER_MODES:
-        raise ValueError(f"render_mode must be None or one of {RENDER_MODES} (got {render_mode!r})")
-    for name, value in (("render_width", render_width), ("render_height", render_height)):
+    if o.render_mode is not None and o.render_mode not in RENDER_MODES:
+        raise ValueError(
+            f"render_mode must be None or one of {RENDER_MODES} (got {o.render_mode!r})"
+        )
+    for name, value in (("render_width", o.render_width), ("render_height", o.render_height)):
         if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 16:
             raise ValueError(f"{name} must be an int >= 16 (got {value!r})")
-    task_obj = make_task(task, **task_kw)
+    task_obj = make_task(o.task, **task_kw)
     return EnvConfig(
         task=task_obj,
         params=params,
         actions=ActionMap(
-            action_mode,
-            _flag("normalize_action", normalize_action),
-            _number("max_delta_deg", max_delta_deg, 0.0),
+            o.action_mode,
+            _flag("normalize_action", o.normalize_action),
+            _number("max_delta_deg", o.max_delta_deg, 0.0),
             joint_range,
         ),
-        layout=ObservationLayout(obs_mode, history_len, tuple(t.name for t in task_obj.targets)),
+        layout=ObservationLayout(
+            o.obs_mode, o.history_len, tuple(t.name for t in task_obj.targets)
+        ),
         n_substeps=n_substeps,
         dt=n_substeps * params.dt,
         grasp_setpoint=np.radians(grasp),
         n_grasp=n_grasp,
-        reset_noise=math.radians(_number("reset_noise_deg", reset_noise_deg, 0.0, 10.0)),
-        randomization=Randomization.resolve(_flag("randomize", randomize), **rand_kw),
-        dn_limit=_number("overcompression_ratio", overcompression_ratio, 1e-3, 1.0) * params.a,
-        ch_limit=_number("ch_limit", ch_limit, 1e-12),
-        base_limit=1.0 + _tolerance("base_tolerance", base_tolerance),
-        render_mode=render_mode,
-        render_size=(int(render_width), int(render_height)),
+        reset_noise=math.radians(_number("reset_noise_deg", o.reset_noise_deg, 0.0, 10.0)),
+        randomization=Randomization.resolve(_flag("randomize", o.randomize), **rand_kw),
+        dn_limit=_number("overcompression_ratio", o.overcompression_ratio, 1e-3, 1.0) * params.a,
+        ch_limit=_number("ch_limit", o.ch_limit, 1e-12),
+        base_limit=1.0 + _tolerance("base_tolerance", o.base_tolerance),
+        render_mode=o.render_mode,
+        render_size=(int(o.render_width), int(o.render_height)),
     )

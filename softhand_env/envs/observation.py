@@ -1,7 +1,8 @@
 """Observations: what the hand senses at its joints (and, optionally, in its fingertips).
 
-The observation is a pure function of the finger part of the physics state, the set-points and
-the PID gains (:func:`observe_row`); it never reads the object's pose or velocity. Information
+The observation is a pure function of the hand's joint read-outs (angles, velocities, set-points,
+PID torques) and, optionally, its fingertip deformations (:func:`observe_rows`); it never reads
+the object's pose or velocity. Information
 about the object that reaches the joints through the contact forces over time (joint angles
 lagging their set-points, PID torques) is *sensing* and allowed: that is what blind
 manipulation means here.
@@ -28,8 +29,6 @@ import math
 import numpy as np
 from gymnasium import spaces
 from numba import njit
-
-from softhand_env.model import DN_1, DN_2, DT_1, DT_2, NQ, TH_1, TH_2, pid_torques
 
 #: Angles (rad) are divided by this (30 deg).
 ANGLE_SCALE = math.radians(30.0)
@@ -67,45 +66,39 @@ def _clip(v):
 
 
 @njit(cache=True)
-def observe_row(y, u, prm, tactile, out):
-    """Write one scaled frame into ``out[:8]`` (``out[:12]`` with ``tactile``).
+def observe_rows(theta, omega, setpoint, torque, deformation, tactile, out):
+    """Write one scaled frame per hand into ``out[s, :8]`` (``out[s, :12]`` with ``tactile``).
 
     Parameters
     ----------
-    y : ndarray, shape (20,)
-        Physics state [q, p, z]; only the finger entries (theta_i, their velocities, the PID
-        integrals z_i and, with ``tactile``, the deformations) are read.
-    u : ndarray, shape (2,)
+    theta, omega : ndarray, shape (N, 2)
+        Joint angles (rad) and velocities (rad/s).
+    setpoint : ndarray, shape (N, 2)
         Set-points (rad).
-    prm : ndarray, shape (N_PARAMS,)
-        Packed parameters (only the PID gains are read).
+    torque : ndarray, shape (N, 2)
+        PID torques (N m).
+    deformation : ndarray, shape (N, 4)
+        d_n1, d_n2, d_t1, d_t2 (m); read only with ``tactile``.
     tactile : bool
-        Append d_n1, d_n2, d_t1, d_t2.
-    out : ndarray, shape (>= frame size,)
+        Append the deformations.
+    out : ndarray, shape (N, >= frame size)
         Output (any float dtype).
     """
-    tau = np.empty(2)
-    pid_torques(y, u, prm, tau)
-    out[0] = _clip(y[TH_1] / ANGLE_SCALE)
-    out[1] = _clip(y[TH_2] / ANGLE_SCALE)
-    out[2] = _clip(y[NQ + TH_1] / VELOCITY_SCALE)
-    out[3] = _clip(y[NQ + TH_2] / VELOCITY_SCALE)
-    out[4] = _clip(u[0] / ANGLE_SCALE)
-    out[5] = _clip(u[1] / ANGLE_SCALE)
-    out[6] = _clip(tau[0] / TORQUE_SCALE)
-    out[7] = _clip(tau[1] / TORQUE_SCALE)
-    if tactile:
-        out[8] = _clip(y[DN_1] / DN_SCALE)
-        out[9] = _clip(y[DN_2] / DN_SCALE)
-        out[10] = _clip(y[DT_1] / DT_SCALE)
-        out[11] = _clip(y[DT_2] / DT_SCALE)
-
-
-@njit(cache=True)
-def observe_batch(Y, U, PRM, tactile, OUT):
-    """:func:`observe_row` for each row of Y (N, 20), U (N, 2), PRM (N, N_PARAMS) into OUT."""
-    for s in range(Y.shape[0]):
-        observe_row(Y[s], U[s], PRM[s], tactile, OUT[s])
+    for s in range(out.shape[0]):
+        o = out[s]
+        o[0] = _clip(theta[s, 0] / ANGLE_SCALE)
+        o[1] = _clip(theta[s, 1] / ANGLE_SCALE)
+        o[2] = _clip(omega[s, 0] / VELOCITY_SCALE)
+        o[3] = _clip(omega[s, 1] / VELOCITY_SCALE)
+        o[4] = _clip(setpoint[s, 0] / ANGLE_SCALE)
+        o[5] = _clip(setpoint[s, 1] / ANGLE_SCALE)
+        o[6] = _clip(torque[s, 0] / TORQUE_SCALE)
+        o[7] = _clip(torque[s, 1] / TORQUE_SCALE)
+        if tactile:
+            o[8] = _clip(deformation[s, 0] / DN_SCALE)
+            o[9] = _clip(deformation[s, 1] / DN_SCALE)
+            o[10] = _clip(deformation[s, 2] / DT_SCALE)
+            o[11] = _clip(deformation[s, 3] / DT_SCALE)
 
 
 class ObservationLayout:
@@ -147,44 +140,3 @@ def add_frame_noise(frame: np.ndarray, std: float, rng: np.random.Generator) -> 
     """Add N(0, std^2) noise (scaled units) to one frame in place, drawn from ``rng``; clip."""
     frame += rng.normal(0.0, std, size=frame.shape[-1])
     np.clip(frame, -OBS_BOUND, OBS_BOUND, out=frame)
-
-
-def reset_observation(
-    out: np.ndarray,
-    layout: ObservationLayout,
-    y: np.ndarray,
-    u: np.ndarray,
-    prm: np.ndarray,
-    goal_obs: np.ndarray,
-    noise: float,
-    rng: np.random.Generator,
-) -> None:
-    """Fill one observation (D,) at reset: the first frame in every history slot, then the goal.
-
-    ``noise`` > 0 draws the frame's noise from ``rng`` (once; the copies share it).
-    """
-    f = layout.frame_size
-    out[layout.history_size :] = goal_obs
-    observe_row(y, u, prm, layout.tactile, out)
-    if noise > 0:
-        add_frame_noise(out[:f], noise, rng)
-    for k in range(1, layout.history_len):
-        out[k * f : (k + 1) * f] = out[:f]
-
-
-def push_frame(
-    out: np.ndarray,
-    layout: ObservationLayout,
-    y: np.ndarray,
-    u: np.ndarray,
-    prm: np.ndarray,
-    noise: float,
-    rng: np.random.Generator,
-) -> None:
-    """Shift the history of one observation (D,) by a frame and write the newest frame."""
-    f, h = layout.frame_size, layout.history_size
-    if h > f:
-        out[f:h] = out[: h - f]
-    observe_row(y, u, prm, layout.tactile, out)
-    if noise > 0:
-        add_frame_noise(out[:f], noise, rng)

@@ -17,7 +17,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from softhand_env.params import HandParams, is_finite_real
+from softhand_env.physics.params import HandParams, is_finite_real
 
 #: rand_* keyword -> HandParams fields it scales (together, by one factor).
 FIELDS: dict[str, tuple[str, ...]] = {

@@ -13,9 +13,9 @@ import math
 from collections.abc import Sequence
 
 import numpy as np
+from numpy.typing import ArrayLike
 
-from softhand_env.model import DN_1, TH_1, TH_OBJ, X_OBJ, Y_OBJ
-from softhand_env.params import HandParams
+from softhand_env.physics.params import HandParams
 
 BACKGROUND = (246, 245, 240)
 PALM = (95, 95, 105)
@@ -76,12 +76,12 @@ class Rasterizer:
             inside &= (bx - ax) * (Y - ay) - (by - ay) * (X - ax) >= 0.0
         self.image[idx][inside] = color
 
-    def segment(self, p: Sequence[float], q: Sequence[float], width_px: float, color) -> None:
+    def segment(self, p: ArrayLike, q: ArrayLike, width_px: float, color) -> None:
         """A straight stroke from p to q (m), ``width_px`` pixels wide."""
-        p, q = np.asarray(p, dtype=np.float64), np.asarray(q, dtype=np.float64)
-        d = q - p
+        a, b = np.asarray(p, dtype=np.float64), np.asarray(q, dtype=np.float64)
+        d = b - a
         n = np.array([-d[1], d[0]]) / max(np.hypot(*d), 1e-12) * (0.5 * width_px / self.scale)
-        self.polygon(np.array([p + n, q + n, q - n, p - n]), color)
+        self.polygon(np.array([a + n, b + n, b - n, a - n]), color)
 
     def disk(self, center, radius: float, color, cuts: Sequence[tuple] = ()) -> None:
         """Fill the disk ∩ {p : n·(p - center) <= c} for each (n, c) in ``cuts``."""
@@ -129,15 +129,23 @@ class SceneRenderer:
 
     def frame(
         self,
-        y: np.ndarray,
+        object_pose: np.ndarray,
+        finger_angles: np.ndarray,
+        deformation: np.ndarray,
         setpoint: np.ndarray,
         params: HandParams,
         goal_pose: tuple[float, float] | None = None,
     ) -> np.ndarray:
-        """RGB frame (height, width, 3) uint8 of state ``y`` (20,).
+        """RGB frame (height, width, 3) uint8 of one hand (physics read-outs).
 
         Parameters
         ----------
+        object_pose : ndarray, shape (3,)
+            Object (x, y, theta) (m, m, rad).
+        finger_angles : ndarray, shape (2,)
+            Joint angles (rad).
+        deformation : ndarray, shape (4,)
+            d_n1, d_n2, d_t1, d_t2 (m).
         setpoint : ndarray, shape (2,)
             Set-points (rad), drawn as thin lines.
         goal_pose : (x, theta) or None
@@ -147,14 +155,14 @@ class SceneRenderer:
         r.clear(BACKGROUND)
         L, dfi, a, wfi = params.L, params.d_fi, params.a, params.W_fi
         r.polygon(_rect((0.0, -0.006), wfi + 2 * dfi, 0.006, 0.0), PALM)
-        x, yo, th = y[X_OBJ], y[Y_OBJ], y[TH_OBJ]
+        x, yo, th = (float(v) for v in object_pose)
         half_w, half_h = 0.5 * params.W_obj, 0.5 * OBJECT_ASPECT * params.W_obj
         r.polygon(_rect((x, yo), half_w, half_h, th), OBJECT)
         co, so = math.cos(th), math.sin(th)
         for i in range(2):
             sgn = -1.0 if i == 0 else 1.0  # (-1)^i in the paper's numbering
             root = np.array([-sgn * wfi, 0.0])
-            t = y[TH_1 + i]
+            t = float(finger_angles[i])
             ct, st = math.cos(t), math.sin(t)
             axis = np.array([sgn * st, ct])  # along the finger
             inward = np.array([sgn * ct, -st])  # towards the object
@@ -163,7 +171,7 @@ class SceneRenderer:
                                 tip - dfi * inward, root - dfi * inward]), FINGER)
             centre = tip + dfi * inward  # fingertip centre O_i (Eqs 5.7-5.8)
             n_c = np.array([sgn * co, sgn * so])  # from O_i towards the object's face
-            dn = max(float(y[DN_1 + i]), 0.0)
+            dn = max(float(deformation[i]), 0.0)
             r.disk(centre, a, FINGERTIP, cuts=(((-inward[0], -inward[1]), 0.0),
                                                ((n_c[0], n_c[1]), a - dn)))
             ts = setpoint[i]

@@ -2,19 +2,21 @@
 
 from __future__ import annotations
 
-import math
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import gymnasium as gym
 import numpy as np
 
-from softhand_env import kernel
 from softhand_env.envs.config import RENDER_MODES, build_config
-from softhand_env.envs.observation import observe_row, push_frame, reset_observation
-from softhand_env.envs.start import start_episode
-from softhand_env.envs.tasks import failure_state, step_flags, termination_reason
-from softhand_env.model import DN_1, DT_2, TH_OBJ, X_OBJ, pack_params
-from softhand_env.physics import HandPhysics
+from softhand_env.envs.observation import observe_rows
+from softhand_env.envs.options import EnvOptions
+from softhand_env.envs.transition import EpisodeBatch
+from softhand_env.physics.hand import HandPhysics
+
+if TYPE_CHECKING:
+    from softhand_env.envs.rendering import HumanViewer, SceneRenderer
+
+_ONE = np.ones(1, dtype=bool)
 
 
 class SoftHandEnv(gym.Env):
@@ -83,7 +85,7 @@ class SoftHandEnv(gym.Env):
 
     Entries 8-11 exist only with ``obs_mode="proprio_tactile"`` (frame size 12, else 8). The
     frame is a function of the finger part of the state, the set-points and the PID gains
-    only (:func:`softhand_env.envs.observation.observe_row`). ``obs_noise`` adds Gaussian noise
+    only (:func:`softhand_env.envs.observation.observe_rows`). ``obs_noise`` adds Gaussian noise
     of that standard deviation (scaled units) to each frame.
 
     ## Rewards
@@ -150,7 +152,11 @@ class SoftHandEnv(gym.Env):
     ``deformation`` (d_n1, d_n2, d_t1, d_t2; m), ``constraint_error`` (max |C^H| in m, max
     |C^N| in m/s over the step; at reset: at the start state), ``grasped`` (both d_n > 0, state
     valid), ``is_success``, ``setpoint`` (rad), ``physics_flags`` (kernel status bits), the
-    reward terms (0 at reset), ``goal`` (SI, goal tasks) and ``termination_reason``.
+    reward terms (0 at reset), ``goal`` (SI, goal tasks) and ``termination_reason``: None while
+    the episode runs (at reset, on every step that does not terminate, and on a step that is
+    only truncated), else the failure of the list above or ``"success"``. The native vector
+    env reports the same values batched (``info["termination_reason"]`` an object array with
+    None for the running environments).
 
     ## Arguments
 
@@ -200,7 +206,9 @@ class SoftHandEnv(gym.Env):
 
     ## Version History
 
-    - v0: initial release (chapter-5 model, Table 5.1 parameters).
+    - v0: initial release (chapter-5 model, Table 5.1 parameters); ``termination_reason`` in
+      every ``info`` (None while the episode runs); ``reward_threshold`` registered for the
+      goal tasks (max_episode_steps x goal_weight, see :func:`softhand_env.envs.register_envs`).
     """
 
     metadata = {"render_modes": list(RENDER_MODES), "render_fps": 50}
@@ -246,8 +254,48 @@ class SoftHandEnv(gym.Env):
         render_width: int = 480,
         render_height: int = 480,
     ):
-        kwargs = {k: v for k, v in locals().items() if k not in ("self", "__class__")}
-        cfg = build_config(**kwargs)
+        #: The keywords of this environment (:class:`~softhand_env.envs.options.EnvOptions`).
+        self.options = EnvOptions(
+            task=task,
+            action_mode=action_mode,
+            normalize_action=normalize_action,
+            max_delta_deg=max_delta_deg,
+            joint_range_deg=joint_range_deg,
+            control_dt=control_dt,
+            obs_mode=obs_mode,
+            history_len=history_len,
+            grasp_setpoint_deg=grasp_setpoint_deg,
+            grasp_duration=grasp_duration,
+            reset_noise_deg=reset_noise_deg,
+            hand=hand,
+            hand_overrides=hand_overrides,
+            overcompression_ratio=overcompression_ratio,
+            ch_limit=ch_limit,
+            base_tolerance=base_tolerance,
+            randomize=randomize,
+            rand_width=rand_width,
+            rand_mass=rand_mass,
+            rand_inertia=rand_inertia,
+            rand_stiffness=rand_stiffness,
+            rand_damping=rand_damping,
+            rand_gains=rand_gains,
+            obs_noise=obs_noise,
+            goal_x_range_mm=goal_x_range_mm,
+            goal_theta_range_deg=goal_theta_range_deg,
+            x_tolerance_mm=x_tolerance_mm,
+            theta_tolerance_deg=theta_tolerance_deg,
+            x_scale_mm=x_scale_mm,
+            theta_scale_deg=theta_scale_deg,
+            goal_weight=goal_weight,
+            success_weight=success_weight,
+            ctrl_weight=ctrl_weight,
+            failure_weight=failure_weight,
+            terminate_on_success=terminate_on_success,
+            render_mode=render_mode,
+            render_width=render_width,
+            render_height=render_height,
+        )
+        cfg = build_config(self.options)
         self.config = cfg
         self.task = cfg.task
         self.render_mode = render_mode
@@ -256,102 +304,39 @@ class SoftHandEnv(gym.Env):
         #: Control period (s).
         self.dt = cfg.dt
         self.metadata = {**type(self).metadata, "render_fps": 1.0 / cfg.dt}
-        self.physics = HandPhysics(cfg.params, ch_limit=cfg.ch_limit)
-        self._params = cfg.params
-        self._prm = pack_params(cfg.params)
-        self._y = self.physics.get_state()
-        self._u = cfg.grasp_setpoint.copy()
-        self._goal = np.zeros(cfg.task.goal_dim)
-        self._goal_t: tuple[float, ...] = ()
-        self._obs = np.zeros(cfg.layout.size, dtype=np.float32)
-        self._noise = cfg.randomization.obs_noise
-        self._renderer = None
-        self._viewer = None
+        self._batch = EpisodeBatch(cfg, None)
+        #: The hand (a one-hand :class:`~softhand_env.physics.HandPhysics`).
+        self.physics = self._batch.physics
+        self._renderer: SceneRenderer | None = None
+        self._viewer: HumanViewer | None = None
 
     # ------------------------------------------------------------------------------ reset
     def reset(
         self, *, seed: int | None = None, options: dict[str, Any] | None = None
     ) -> tuple[np.ndarray, dict[str, Any]]:
         super().reset(seed=seed)
-        cfg = self.config
         goal = options.get("goal") if options else None
-        start = start_episode(cfg, self.np_random, self._params, self._prm, goal)
-        if start.params is not self._params:
-            self._params, self._prm = start.params, start.prm
-            self.physics.set_params(start.params)
-        self.physics.reset(start.state)
-        self._y = start.state
-        self._u = start.setpoint
-        self._goal = start.goal
-        self._goal_t = tuple(float(g) for g in start.goal)
-        reset_observation(
-            self._obs,
-            cfg.layout,
-            self._y,
-            self._u,
-            self._prm,
-            self.task.goal_observation(start.goal),
-            self._noise,
-            self.np_random,
-        )
-        ce = start.constraint_error
-        zeros = (0.0,) * len(self.task.terms)
-        info = self._info(ce[0], ce[1], start.grasped, start.success, zeros, 0)
+        batch = self._batch
+        batch.start(0, self.np_random, goal)
+        batch.finish_reset(_ONE, (self.np_random,))
+        info = batch.info(0)
         if self.render_mode == "human":
             self.render()
-        return self._obs.copy(), info
+        return batch.obs[0].copy(), info
 
     # ------------------------------------------------------------------------------- step
     def step(self, action: np.ndarray) -> tuple[np.ndarray, float, bool, bool, dict[str, Any]]:
-        cfg = self.config
-        u, ctrl = cfg.actions.setpoints(action, self._u)
-        status = self.physics.step(u, cfg.n_substeps, strict=False)
-        ch, cn = status.max_ch, status.max_cn
-        flags = int(step_flags(status.flags, ch, cfg.ch_limit))
-        if flags & kernel.FATAL_FLAGS:
-            ch = ch if math.isfinite(ch) else math.inf
-            cn = cn if math.isfinite(cn) else math.inf
-            if flags & kernel.FLAG_NONFINITE:
-                # roll back to the last finite state: observations and info stay finite
-                self.physics.set_state(self._y)
-        y = self.physics.get_state()
-        self._y = y
-        self._u = u
-        yl = y.tolist()  # Python floats: the generic task code is fastest on scalars
-        failed, grasped, _, _ = failure_state(
-            flags, yl, cfg.dn_limit, cfg.params.a, cfg.base_limit
-        )
-        terms, success = self.task.evaluate(yl, self._goal_t, ctrl, failed, grasped)
-        reward = float(sum(terms))
-        terminated = bool(failed or (success and self.task.terminate_on_success))
-        push_frame(self._obs, cfg.layout, y, u, self._prm, self._noise, self.np_random)
-        info = self._info(ch, cn, grasped, success, terms, flags)
-        if terminated:
-            info["termination_reason"] = (
-                termination_reason(flags, y, cfg.dn_limit) if failed else "success"
-            )
+        a = np.asarray(action)
+        if a.shape != (2,):
+            raise ValueError(f"action must have shape (2,) (got {a.shape})")
+        batch = self._batch
+        reward, terminated = batch.step(a.reshape(1, 2), (self.np_random,))
+        info = batch.info(0)
         if self.render_mode == "human":
             self.render()
-        return self._obs.copy(), reward, terminated, False, info
+        return batch.obs[0].copy(), float(reward[0]), bool(terminated[0]), False, info
 
     # ---------------------------------------------------------------------------- helpers
-    def _info(self, ch, cn, grasped, success, terms, flags) -> dict[str, Any]:
-        y = self._y
-        info = {
-            "object_pose": y[X_OBJ : TH_OBJ + 1].copy(),
-            "deformation": y[DN_1 : DT_2 + 1].copy(),
-            "constraint_error": np.array((ch, cn)),
-            "grasped": bool(grasped),
-            "is_success": bool(success),
-            "setpoint": self._u.copy(),
-            "physics_flags": int(flags),
-        }
-        if self._goal_t:
-            info["goal"] = self._goal.copy()
-        for name, value in zip(self.task.terms, terms, strict=True):
-            info[name] = float(value)
-        return info
-
     def observation_from_state(self, state: np.ndarray, setpoint: np.ndarray) -> np.ndarray:
         """The newest observation frame (float32, no noise) for a physics state.
 
@@ -362,20 +347,17 @@ class SoftHandEnv(gym.Env):
         setpoint : ndarray, shape (2,)
             Set-points (rad).
         """
-        out = np.zeros(self.config.layout.frame_size, dtype=np.float32)
-        observe_row(
-            np.asarray(state, dtype=np.float64),
-            np.asarray(setpoint, dtype=np.float64),
-            self._prm,
-            self.config.layout.tactile,
-            out,
-        )
-        return out
+        hand = HandPhysics(self.physics.params, num_hands=1, check_stability=False)
+        hand.reset_hand(0, np.asarray(state, dtype=np.float64), setpoint)
+        out = np.zeros((1, self.config.layout.frame_size), dtype=np.float32)
+        observe_rows(hand.finger_angles, hand.finger_velocities, hand.setpoint,
+                     hand.joint_torques, hand.deformation, self.config.layout.tactile, out)
+        return out[0]
 
     @property
     def goal(self) -> np.ndarray:
         """Current goal (SI units: m for x, rad for theta), shape (goal_dim,)."""
-        return self._goal.copy()
+        return self._batch.goal[0].copy()
 
     # -------------------------------------------------------------------------- rendering
     def render(self) -> np.ndarray | None:
@@ -389,8 +371,11 @@ class SoftHandEnv(gym.Env):
             from softhand_env.envs.rendering import SceneRenderer
 
             self._renderer = SceneRenderer(self.config.params, *self.config.render_size)
-        pose = self.task.goal_pose(self._y, self._goal)
-        frame = self._renderer.frame(self._y, self._u, self._params, pose)
+        p = self.physics
+        pose = p.object_pose
+        goal_pose = self.task.goal_pose(pose, self._batch.goal[0])
+        frame = self._renderer.frame(pose, p.finger_angles, p.deformation, p.setpoint,
+                                     p.params, goal_pose)
         if self.render_mode == "rgb_array":
             return frame
         if self._viewer is None:

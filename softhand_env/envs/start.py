@@ -3,27 +3,27 @@
 :func:`start_episode` draws an episode's parameters, grasp set-points and goal from the env's
 ``np_random`` and returns its start state; both environments use it.
 
-:func:`grasp_state` holds the grasp set-points for ``n_substeps`` RK4 substeps from
-:func:`softhand_env.model.initial_state` (``n_substeps = 0`` returns the point-contact state
-itself, as the paper's replay needs). Results are cached per (parameters, set-points, substeps),
-so resets without randomisation cost a copy.
+:func:`grasp_state` holds the grasp set-points for ``n_substeps`` RK4 substeps from the
+paper's parallel point-contact state (``n_substeps = 0`` returns that state itself, as the
+paper's replay needs) and classifies the result like every control step
+(:func:`softhand_env.physics.failure.classify`, through :class:`~softhand_env.physics.HandPhysics`).
+Results are cached per (parameters, set-points, substeps, limits), so resets without
+randomisation cost a copy.
 """
 
 from __future__ import annotations
 
 from collections import OrderedDict
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
-from softhand_env import kernel
 from softhand_env.envs.config import EnvConfig
-from softhand_env.envs.tasks import base_ratio, failure_state
-from softhand_env.model import DN_1, DN_2, constraint_residuals, initial_state, pack_params
-from softhand_env.params import HandParams
-from softhand_env.physics import PhysicsError, describe_flags
+from softhand_env.physics.hand import HandPhysics, PhysicsError
+from softhand_env.physics.params import HandParams
 
-_CACHE: OrderedDict[tuple, tuple[np.ndarray, float, float]] = OrderedDict()
+_CACHE: OrderedDict[tuple[Any, ...], tuple[np.ndarray, float, float]] = OrderedDict()
 _CACHE_SIZE = 64
 #: Draws of randomised parameters / grasp noise tried before a failing grasp phase raises.
 MAX_DRAWS = 10
@@ -31,7 +31,6 @@ MAX_DRAWS = 10
 
 def grasp_state(
     params: HandParams,
-    prm: np.ndarray,
     setpoint: np.ndarray,
     n_substeps: int,
     ch_limit: float,
@@ -44,9 +43,7 @@ def grasp_state(
     Parameters
     ----------
     params : HandParams
-        Parameters (for the point-contact geometry).
-    prm : ndarray, shape (N_PARAMS,)
-        ``pack_params(params)``.
+        Parameters of the hand.
     setpoint : ndarray, shape (2,)
         Grasp set-points (rad).
     n_substeps : int
@@ -58,8 +55,7 @@ def grasp_state(
     use_cache : bool
         Look up / store the result (off for randomised parameters, which rarely repeat).
     base_limit : float
-        Contact past a fingertip base fails beyond this
-        :func:`~softhand_env.envs.tasks.base_ratio` (as in the environments).
+        Allowed reach of a contact circle past its fingertip base (as in the environments).
 
     Returns
     -------
@@ -71,35 +67,30 @@ def grasp_state(
     Raises
     ------
     PhysicsError
-        The grasp phase left the model (lost grasp, over-compression, divergence, contact
+        The grasp phase ended in a failure (lost grasp, over-compression, divergence, contact
         past the fingertip base): the configuration (parameters, grasp set-points) cannot
         start an episode.
     """
     u0, u1 = float(setpoint[0]), float(setpoint[1])
-    limits = (float(ch_limit), float(dn_limit), float(base_limit))
-    key = (prm.tobytes(), u0, u1, int(n_substeps), *limits)
+    key = (params, u0, u1, int(n_substeps), float(ch_limit), float(dn_limit), float(base_limit))
     hit = _CACHE.get(key) if use_cache else None
     if hit is None:
-        y = initial_state(params)
-        max_ch = max_cn = 0.0
+        physics = HandPhysics(
+            params, ch_limit=ch_limit, dn_limit=dn_limit, base_limit=base_limit,
+            check_stability=False,
+        )
         if n_substeps > 0:
-            diag = np.zeros(2)
-            u = np.array([u0, u1])
-            flags, _ = kernel.advance(y, u, prm, int(n_substeps), ch_limit, diag)
-            if max(y[DN_1], y[DN_2]) >= dn_limit:
-                flags |= kernel.FLAG_OVERCOMPRESSED
-            if flags & kernel.FLAG_BASE and base_ratio(y, params.a) <= base_limit:
-                flags &= ~kernel.FLAG_BASE  # within the tolerance: not a failure
-            if flags & (kernel.FATAL_FLAGS | kernel.FLAG_BASE):  # the env's failures
+            status = physics.step(np.array([u0, u1]), int(n_substeps), strict=False)
+            if status.failed:
                 raise PhysicsError(
                     "the grasp phase at set-points "
-                    f"{np.degrees(u).round(3).tolist()} deg failed: "
-                    f"{', '.join(describe_flags(int(flags)))}; choose other grasp set-points "
-                    "or parameters",
-                    int(flags),
+                    f"{np.degrees([u0, u1]).round(3).tolist()} deg failed: "
+                    f"{status.reason}; choose other grasp set-points or parameters",
+                    int(status.flags),
                 )
-            max_ch, max_cn = float(diag[0]), float(diag[1])
-        hit = (y, max_ch, max_cn)
+            hit = (physics.get_state(), float(status.max_ch), float(status.max_cn))
+        else:
+            hit = (physics.get_state(), 0.0, 0.0)
         if use_cache:
             _CACHE[key] = hit
             if len(_CACHE) > _CACHE_SIZE:
@@ -115,36 +106,24 @@ class EpisodeStart:
     ----------
     params : HandParams
         Parameters of the episode (randomised or nominal).
-    prm : ndarray, shape (N_PARAMS,)
-        ``pack_params(params)``.
     setpoint : ndarray, shape (2,)
         First set-points (rad): the grasp set-points, with noise if configured.
     goal : ndarray, shape (goal_dim,)
         Goal (SI units).
     state : ndarray, shape (20,)
         Start state.
-    constraint_error : ndarray, shape (2,)
-        |C^H| max (m) and |C^N| max (m/s) at the start state.
-    grasped, success : bool
-        At the start state.
     """
 
     params: HandParams
-    prm: np.ndarray
     setpoint: np.ndarray
     goal: np.ndarray
     state: np.ndarray
-    constraint_error: np.ndarray
-    grasped: bool
-    success: bool
 
 
 def start_episode(
     cfg: EnvConfig,
     rng: np.random.Generator,
-    params: HandParams,
-    prm: np.ndarray,
-    goal: np.ndarray | None = None,
+    goal: Any = None,
 ) -> EpisodeStart:
     """Draw and simulate the start of an episode (shared by the single and the vector env).
 
@@ -157,22 +136,18 @@ def start_episode(
     cfg : EnvConfig
     rng : numpy Generator
         The environment's ``np_random``.
-    params, prm : HandParams, ndarray
-        Parameters of the previous episode (reused, not re-packed, when nothing is randomised).
-    goal : ndarray, optional
+    goal : array_like, optional
         Goal to use instead of the sampled one (still sampled, to keep the stream aligned).
     """
     fixed = not (cfg.randomization.params_active or cfg.reset_noise > 0)
     for attempt in range(1 if fixed else MAX_DRAWS):
-        new_params = cfg.randomization.sample_params(cfg.params, rng)
-        if new_params is not params:
-            params, prm = new_params, pack_params(new_params)
+        params = cfg.randomization.sample_params(cfg.params, rng)
         u0 = cfg.grasp_setpoint.copy()
         if cfg.reset_noise > 0:
             u0 += rng.uniform(-cfg.reset_noise, cfg.reset_noise, size=2)
         try:
             y, _, _ = grasp_state(
-                params, prm, u0, cfg.n_grasp, cfg.ch_limit, cfg.dn_limit, use_cache=fixed,
+                params, u0, cfg.n_grasp, cfg.ch_limit, cfg.dn_limit, use_cache=fixed,
                 base_limit=cfg.base_limit,
             )
             break
@@ -186,9 +161,4 @@ def start_episode(
         goal = np.asarray(goal, dtype=np.float64).reshape(-1)
         if goal.shape != sampled.shape or not np.isfinite(goal).all():
             raise ValueError(f"goal must be {sampled.size} finite numbers (SI units)")
-    res = np.empty(4)
-    constraint_residuals(y, prm, res)
-    ce = np.array((max(abs(res[0]), abs(res[1])), max(abs(res[2]), abs(res[3]))))
-    _, grasped, _, _ = failure_state(0, y, cfg.dn_limit)
-    _, success = cfg.task.evaluate(y, tuple(float(g) for g in goal), 0.0, False, grasped)
-    return EpisodeStart(params, prm, u0, goal, y, ce, bool(grasped), bool(success))
+    return EpisodeStart(params, u0, goal, y)

@@ -22,7 +22,7 @@ from pathlib import Path
 
 import numpy as np
 
-from softhand_env import contact
+from softhand_env.physics import contact
 
 NO_DATA_NOTE = "Model curves only: the paper's experimental curves are not available as data."
 MM, DEG = 1e-3, np.pi / 180

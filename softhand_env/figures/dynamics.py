@@ -17,7 +17,7 @@ from pathlib import Path
 
 import numpy as np
 
-from softhand_env.model import (
+from softhand_env.physics.model import (
     DN_1,
     DT_1,
     NY,
@@ -28,7 +28,7 @@ from softhand_env.model import (
     constraint_residuals,
     pack_params,
 )
-from softhand_env.params import load_hand_params
+from softhand_env.physics.params import load_hand_params
 
 #: Round-off level of the residuals (m and m/s): double-precision epsilon times the hand's size
 #: (~0.1 m) is ~2e-17, and at rest the residuals alternate between that and exactly 0. Values
@@ -97,7 +97,7 @@ def run(args: argparse.Namespace) -> list[Path]:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from softhand_env.simulate import run_paper_motions
+    from softhand_env.tools.simulate import run_paper_motions
 
     if not args.duration > 0:
         raise ValueError(f"--duration must be > 0 (got {args.duration})")

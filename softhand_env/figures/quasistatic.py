@@ -22,7 +22,7 @@ from pathlib import Path
 
 import numpy as np
 
-from softhand_env.params import load_hand_params
+from softhand_env.physics.params import load_hand_params
 from softhand_env.quasistatic import (
     PAPER_GRASP_ANGLES,
     SCHEMES,

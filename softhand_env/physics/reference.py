@@ -1,9 +1,9 @@
 """Plain-NumPy reference of the CSM model: dense KKT solve, Python RK4 loop.
 
 It evaluates the same model terms as the compiled kernel
-(:func:`softhand_env.model.constraint_terms`, :func:`softhand_env.model.potential_forces`) but
+(:func:`.model.constraint_terms`, :func:`.model.potential_forces`) but
 assembles the full 13x13 system of Eq 5.24, solves it with :func:`numpy.linalg.solve` and
-integrates with the generic :func:`softhand_env.integrate.rk_step`. It is slow (a Python call
+integrates with the generic :func:`.integrate.rk_step`. It is slow (a Python call
 per stage) and exists to cross-check the kernel's Schur-complement solve and unrolled RK4, and
 as the speed baseline of the benchmark.
 """
@@ -12,8 +12,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from softhand_env.integrate import integrate_fixed
-from softhand_env.model import (
+from softhand_env.physics.integrate import integrate_fixed
+from softhand_env.physics.model import (
     NQ,
     P_ALPHA,
     P_BETA,

@@ -1,7 +1,7 @@
 """Explicit Runge-Kutta integration as plain functions, independent of any physics.
 
 The model is just ``fun(t, y, *args) -> dy/dt`` (as in :mod:`scipy.integrate`); the classic
-fourth-order tableau below is the one the compiled kernel (:mod:`softhand_env.kernel`) unrolls.
+fourth-order tableau below is the one the compiled kernel (:mod:`.kernel`) unrolls.
 """
 
 from __future__ import annotations

@@ -1,116 +1,32 @@
-"""Quasi-static LMEE manipulation model of chapter 4 (Eqs 4.1-4.15) and the handling process.
+"""Quasi-static LMEE manipulation model of chapter 4 (Eqs 4.1-4.15): model and solver.
 
-Model
------
-Two fingers with one rotary joint each hold a rigid planar object of width ``W_obj`` between
-hemispherical soft fingertips of radius ``a``. Frame Sigma_R sits at the midpoint of the finger
-roots, y along the fingers, x to the right; finger 1 = right, finger 2 = left; theta_i > 0
-rotates finger i inward; theta_obj > 0 is counter-clockwise; sigma_i = (-1)^i (sigma_1 = -1,
-sigma_2 = +1). Fingertip centres (Eqs 5.7-5.8)::
+Two fingers with one rotary joint each hold a rigid planar object between hemispherical soft
+fingertips; the finger angles (theta_1, theta_2) are the inputs, given as a path of small
+increments. Per increment the configuration ``z = (x, y, theta_obj, d_1, d_2)`` (m, m, rad, m,
+m) minimises the fingertip energy (Eq 4.11) on the normal and rolling constraints; it is found
+by Newton's method on the KKT equations, warm-started from the previous increment, with a
+second-order check (:func:`solve_path`, results in :class:`QuasiStaticPath`). The rolling
+distances follow the discretised Eq 5.10 (``scheme="trapezoid"`` by default, ``"paper"`` for
+the printed backward-Euler sums), so the equilibrium is path-dependent.
 
-    O_ix = -sigma_i W_fi + sigma_i (L sin theta_i + d_fi cos theta_i)
-    O_iy = L cos theta_i - d_fi sin theta_i
-
-Configuration ``z = (x, y, theta_obj, d_1, d_2)`` (m, m, rad, m, m). Constraints, all in m:
-
-* normal (Eqs 4.4/4.5 = corrected Eq 5.9 with w = h = 0)::
-
-      N_i = sigma_i [(x - O_ix) cos theta_obj + (y - O_iy) sin theta_obj] - (a - d_i) - W_obj/2
-
-* rolling (Eqs 4.8-4.10, written as in ch. 5, Eqs 5.10-5.12 with d_t = 0). With
-  ``GQ_i = -(x - O_ix) sin theta_obj + (y - O_iy) cos theta_obj`` and the rolling distance
-  ``s_i`` (Eq 5.10, ds_i = -(a - d_i)(dtheta_i + sigma_i dtheta_obj)), the constraint is
-  ``R_i = GQ_i - s_i = 0``. Substituting Eq 4.10 into Eqs 4.8/4.9 gives exactly
-  ``GQ_i^n = GQ_i^0 - sum_k (a - d_i^k)(Dtheta_i^k + sigma_i Dtheta_obj^k)``, i.e. a
-  backward-Euler (``scheme="paper"``) sum of Eq 5.10; the default ``scheme="trapezoid"``
-  uses ``a - (d_i^(k-1) + d_i^k)/2`` instead (a second-order sum; the overall order is
-  discussed below).
-
-Energy (Eq 4.11, the closed form of Eq 2.14 for each fingertip)::
-
-    P = (pi E / 3) [d_1^3 / cos^2(theta_1 - theta_obj) + d_2^3 / cos^2(theta_2 + theta_obj)]
-
-Interpretation of the LMEE algorithm (Sec. 4.2)
------------------------------------------------
-The text lists nine variables and four constraints, then calls (x, y, theta_obj) "the"
-independent variables while d and s are "described by" them, and minimises a Lagrangian with
-Nelder-Mead. We use the following well-posed reading:
-
-1. The finger angles (theta_1, theta_2) are inputs, given as a path of small increments.
-2. Per increment k the unknowns are ``z = (x, y, theta_obj, d_1, d_2)``. The rolling
-   distances are not unknowns: s_i^k follows from s_i^(k-1) by the discretised Eq 5.10 (the
-   history sums of Eq 4.10), which makes the equilibrium path-dependent.
-3. The two normal and two rolling constraints leave a one-dimensional manifold of
-   configurations; the object takes the configuration that minimises P on it (the LMEE).
-   It is found by Newton's method on the 9 KKT equations ``grad P - J^T lambda = 0,
-   g = 0`` warm-started from the previous increment; a second-order check evaluates the
-   reduced Hessian ``Z^T (H_P - sum lambda_k H_gk) Z`` on the constraint null space Z.
-
-Consequences (tested in ``tests/test_quasistatic.py``): to first order the rolling
-constraints fix theta_obj and the tangential position kinematically, and the energy only
-decides how the total squeeze d_1 + d_2 is shared (equal normal forces,
-d_1/cos theta_p1 = d_2/cos theta_p2, up to O(increment) terms). Because the rolling
-constraints are non-holonomic, the state depends on the finger path, not only on its end:
-reaching the same finger angles in a different order, or running a closed loop in
-finger-angle space that encloses area, leaves the object in a different pose (by an amount
-that converges as the increment shrinks). Retracing a path backwards returns to the start up
-to the discretisation: the multipliers of the rolling constraints act on the squeeze split
-through the d-dependence of the discrete rolling radius (an O(increment) term), so on
-general paths the trapezoidal scheme is first order and retracing drifts by O(increment)
-(about 1e-6 rad for a 30-segment path at 0.1 deg). On the handling process's paths
-(theta_1 - g = -(theta_2 - g)) this term is the same for both fingers and drops out: there
-the step map is symmetric, retracing is exact to round-off and halving the increment changes
-the end states by < 1e-6 mm. The paper's backward-Euler sums drift by O(increment) on every
-path (0.028 mm over the 7.2 deg handling process).
-
-At d_1 + d_2 -> 0 (the fingers just touching) the energy is cubic and the KKT matrix
-singular; increments with d_1 + d_2 < ``D_DEGENERATE`` are solved with the limit condition
-d_1 cos theta_p2 = d_2 cos theta_p1 instead, flagged in ``degenerate``, and their KKT
-residual is NaN. A path that would open the fingers beyond contact (d_1 + d_2 < 0) or
-compress a fingertip to d_i >= a raises ``ValueError``.
-
-Chapter 2's closed form is exact only while the contact circle stays above the fingertip base,
-``tan|theta_p| <= (a - d)/a_c`` with ``a_c = sqrt(a^2 - (a - d)^2)``; increments beyond it
-are computed with the closed form anyway and flagged in ``QuasiStaticPath.base_violation``.
-
-Handling process (Sec. 4.3)
----------------------------
-For the right finger inward rotation is counter-clockwise, for the left finger clockwise
-(the fingers point along +y; rotating the right finger about its root at x = +W_fi towards
-the object moves its tip to -x, which is CCW). "Both fingers rotate counter-clockwise by 20
-deg" is therefore theta_1 += 20 deg, theta_2 -= 20 deg: both fingertips move to -x and the
-object is carried to negative x, while the fingertip surfaces (the right one moving down at
-its contact, the left one up) roll it clockwise (theta_obj is about -0.98 phi). With the
-rotation phi = (theta_1 - theta_2)/2, i.e. theta = (g + phi, g - phi), the operations are:
-1 close (0, 0) -> (g, g); 2 phi 0 -> +20 deg; 3 phi +20 -> -20; 4 -20 -> +20; 5 operations
-3 and 4 repeated three times (``cycles``); 6 phi +20 -> 0; 7 (g, g) -> (0, 0).
-
-Cross-checks against the chapter-5 dynamic model should run :func:`solve_path` along the
-dynamic model's *actual* finger angles (the PID loop leaves a steady-state error of about
-1 deg under the grasp force), resampled with :func:`resample`. With gravity off and
-``bending=1e3`` a slow (0.1 deg per 10 ms) run of operations 1-3 agreed to 0.006 mm and
-0.001 deg during development.
-
+The constraints, the reading of the LMEE algorithm, the convergence order of the two schemes,
+the degenerate (just touching) increments and the fingertip-base flags: ``docs/quasistatic.md``.
 Units are SI throughout (m, rad, Pa, J, N).
 """
 
 from __future__ import annotations
 
-import dataclasses
 import math
 from dataclasses import dataclass, field
 
 import numpy as np
 from numba import njit
+from numpy.typing import ArrayLike
 
-from softhand_env.params import HandParams, load_hand_params
+from softhand_env.physics.params import HandParams, load_hand_params
 
 #: Default finger-angle increment (rad) of the handling process: 0.1 deg.
 DEFAULT_STEP = math.radians(0.1)
-#: Grasp angles of Sec. 4.3 (rad): 2.4 to 7.2 deg in 1.2 deg steps.
-PAPER_GRASP_ANGLES = tuple(math.radians(g) for g in (2.4, 3.6, 4.8, 6.0, 7.2))
-#: Finger rotation of operations 2-6 (rad): 20 deg.
-PAPER_ROTATION = math.radians(20.0)
 #: Total squeeze d_1 + d_2 (m) below which an increment is solved in the degenerate mode.
 D_DEGENERATE = 1e-7
 #: Allowed negative total squeeze (m) before a path counts as opening the grasp.
@@ -136,7 +52,7 @@ _NONFINITE = 4
 def energy_scalar(d, theta_p, E):
     """Closed-form fingertip energy pi E d^3 / (3 cos^2 theta_p) (Eq 2.14), scalar (J).
 
-    Compiled copy of :func:`softhand_env.contact.potential_energy` for the inner loop.
+    Compiled copy of :func:`softhand_env.physics.contact.potential_energy` for the inner loop.
     """
     c = math.cos(theta_p)
     return math.pi * E * d * d * d / (3.0 * c * c)
@@ -685,7 +601,7 @@ def _pack(params: HandParams) -> np.ndarray:
 def initial_state(params: HandParams | None = None) -> QuasiStaticState:
     """Symmetric first-touch configuration: theta_1 = theta_2 = theta_t, d = 0, s = 0.
 
-    theta_t is :func:`softhand_env.model.initial_finger_angle` (0 for Tables 4.1/5.1, where
+    theta_t is :func:`softhand_env.physics.model.initial_finger_angle` (0 for Tables 4.1/5.1, where
     the parallel fingers touch the object at exactly one point); the object centre is at the
     height of the fingertip centres (GQ_i = 0, so s_i = 0) and theta_obj = 0. This is also the
     chapter-5 dynamic model's initial state.
@@ -695,7 +611,7 @@ def initial_state(params: HandParams | None = None) -> QuasiStaticState:
     ValueError
         If the geometry admits no point-contact state.
     """
-    from softhand_env.model import initial_finger_angle
+    from softhand_env.physics.model import initial_finger_angle
 
     p = resolve_params(params)
     t = initial_finger_angle(p)
@@ -853,10 +769,10 @@ def solve_path(
 def _base_flags(d: np.ndarray, theta_p: np.ndarray, a: float) -> np.ndarray:
     """(N, 2) True where the contact circle passes the fingertip base.
 
-    Uses :func:`softhand_env.contact.contact_within_base`; compressions of degenerate rows can
+    Uses :func:`~softhand_env.contact.contact_within_base`; compressions of degenerate rows can
     be round-off negatives (|d| < D_DEGENERATE) and are clipped to 0 for the check.
     """
-    from softhand_env.contact import contact_within_base
+    from softhand_env.physics.contact import contact_within_base
 
     return ~np.asarray(contact_within_base(np.maximum(d, 0.0), theta_p, a), dtype=bool)
 
@@ -886,7 +802,7 @@ def _make_path(th, z, s, lam, P, res, kkt, hred, iters, deg, p, scheme, status="
     )
 
 
-def linear_path(start: np.ndarray, end: np.ndarray, step: float = DEFAULT_STEP) -> np.ndarray:
+def linear_path(start: ArrayLike, end: ArrayLike, step: float = DEFAULT_STEP) -> np.ndarray:
     """Straight finger-angle path from ``start`` to ``end`` (both (2,), rad), ends included.
 
     The number of increments is ceil(max|end - start| / step); returns shape (n + 1, 2).
@@ -930,131 +846,3 @@ def resample(theta: np.ndarray, step: float = DEFAULT_STEP) -> tuple[np.ndarray,
     segs = [linear_path(a0, a1, step)[1:] for a0, a1 in zip(th[:-1], th[1:], strict=True)]
     counts = np.array([0] + [s.shape[0] for s in segs], dtype=np.int64)
     return np.vstack([th[:1]] + segs), np.cumsum(counts)
-
-
-def handling_path(
-    grasp_angle: float,
-    step: float = DEFAULT_STEP,
-    rotation: float = PAPER_ROTATION,
-    cycles: int = 3,
-    theta_start: float = 0.0,
-) -> tuple[np.ndarray, np.ndarray]:
-    """Finger-angle path of the Sec. 4.3 handling process and its operation numbers.
-
-    Parameters
-    ----------
-    grasp_angle : float
-        Grasp angle g (rad) reached by both fingers in operation 1.
-    step : float
-        Increment (rad) per finger.
-    rotation : float
-        Rotation of operation 2 (rad); operations 3/4 rotate by 2 * rotation.
-    cycles : int
-        Repetitions of operations 3 and 4 in operation 5 (paper: 3).
-    theta_start : float
-        Finger angle of the open hand (rad; 0 for the paper's parameters).
-
-    Returns
-    -------
-    theta : ndarray, shape (N, 2)
-        (theta_1, theta_2) in rad; counter-clockwise rotation of both fingers by phi is
-        (g + phi, g - phi).
-    op : ndarray of int, shape (N,)
-        Operation number 1-7 of each row (row 0, the open hand, is labelled 1).
-    """
-    for name, val in (("grasp_angle", grasp_angle), ("step", step), ("rotation", rotation)):
-        if not isinstance(val, (int, float, np.floating)) or not math.isfinite(val):
-            raise ValueError(f"{name} must be a finite float (rad) (got {val!r})")
-    if not 0 < step <= math.radians(1.0):
-        raise ValueError(f"step must be in (0, 1 deg] (got {step!r} rad)")
-    if not isinstance(cycles, (int, np.integer)) or cycles < 0:
-        raise ValueError(f"cycles must be a non-negative int (got {cycles!r})")
-    g = float(grasp_angle)
-    t0 = float(theta_start)
-    grasp = np.array([g, g])
-    rot = lambda phi: np.array([g + phi, g - phi])  # noqa: E731
-    segments = [(1, np.array([t0, t0]), grasp), (2, grasp, rot(rotation))]
-    segments.append((3, rot(rotation), rot(-rotation)))
-    segments.append((4, rot(-rotation), rot(rotation)))
-    for _ in range(cycles):
-        segments.append((5, rot(rotation), rot(-rotation)))
-        segments.append((5, rot(-rotation), rot(rotation)))
-    segments.append((6, rot(rotation), grasp))
-    segments.append((7, grasp, np.array([t0, t0])))
-    rows = [segments[0][1][None, :]]
-    ops = [np.array([1])]
-    for op, a0, a1 in segments:
-        seg = linear_path(a0, a1, step)[1:]
-        rows.append(seg)
-        ops.append(np.full(seg.shape[0], op))
-    return np.vstack(rows), np.concatenate(ops)
-
-
-def handling_process(
-    grasp_angle: float,
-    params: HandParams | None = None,
-    step: float = DEFAULT_STEP,
-    *,
-    rotation: float = PAPER_ROTATION,
-    cycles: int = 3,
-    scheme: str = "trapezoid",
-) -> QuasiStaticPath:
-    """Simulate the handling process of Sec. 4.3 for one grasp angle.
-
-    Parameters
-    ----------
-    grasp_angle : float
-        Grasp angle (rad); the paper uses 2.4, 3.6, 4.8, 6.0, 7.2 deg (PAPER_GRASP_ANGLES).
-    params : HandParams, optional
-        Default ``load_hand_params("paper_ch4")``.
-    step : float
-        Finger-angle increment (rad), default 0.1 deg.
-    rotation, cycles, scheme
-        See :func:`handling_path` and :func:`solve_path`.
-
-    Returns
-    -------
-    QuasiStaticPath
-        With ``op`` holding the operation number (1-7) of each row and ``grasp_angle`` set.
-        The x end points of the +20 deg and -40 deg operations are rows ``end_of(2)`` and
-        ``end_of(3)``.
-    """
-    p = resolve_params(params)
-    st = initial_state(p)
-    theta, op = handling_path(grasp_angle, step, rotation, cycles, float(st.theta[0]))
-    path = solve_path(theta, p, st, scheme=scheme, max_step=max(step, DEFAULT_STEP) * 1.0001)
-    return dataclasses.replace(path, op=op, grasp_angle=float(grasp_angle))
-
-
-def rotation_angle(path: QuasiStaticPath) -> np.ndarray:
-    """(N,) counter-clockwise finger rotation phi = (theta_1 - theta_2)/2 (rad)."""
-    return 0.5 * (path.theta[:, 0] - path.theta[:, 1])
-
-
-def handling_summary(paths: list[QuasiStaticPath]) -> dict[str, np.ndarray]:
-    """Key numbers of handling-process runs (one per grasp angle), SI units.
-
-    Returns a dict of arrays over the runs: ``grasp_angle``, ``x_after_ccw`` (end of op 2),
-    ``x_after_cw`` (end of op 3), ``y_grasp`` (end of op 1), ``drift_xy`` and
-    ``drift_theta`` (end of op 6 minus end of op 1: m and rad), ``n_base_violation``,
-    ``max_constraint_residual`` (m), ``max_kkt_residual`` (non-degenerate rows) and
-    ``min_reduced_hessian``.
-    """
-    out: dict[str, list[float]] = {k: [] for k in (
-        "grasp_angle", "x_after_ccw", "x_after_cw", "y_grasp", "drift_xy", "drift_theta",
-        "n_base_violation", "max_constraint_residual", "max_kkt_residual",
-        "min_reduced_hessian")}
-    for pth in paths:
-        i1, i2, i3, i6 = pth.end_of(1), pth.end_of(2), pth.end_of(3), pth.end_of(6)
-        out["grasp_angle"].append(pth.grasp_angle)
-        out["x_after_ccw"].append(pth.x[i2])
-        out["x_after_cw"].append(pth.x[i3])
-        out["y_grasp"].append(pth.y[i1])
-        out["drift_xy"].append(math.hypot(pth.x[i6] - pth.x[i1], pth.y[i6] - pth.y[i1]))
-        out["drift_theta"].append(abs(pth.theta_obj[i6] - pth.theta_obj[i1]))
-        out["n_base_violation"].append(pth.n_base_violation)
-        out["max_constraint_residual"].append(float(np.max(pth.constraint_residual)))
-        out["max_kkt_residual"].append(float(np.nanmax(pth.kkt_residual)))
-        nd = ~pth.degenerate
-        out["min_reduced_hessian"].append(float(np.min(pth.reduced_hessian[nd])))
-    return {k: np.asarray(v) for k, v in out.items()}

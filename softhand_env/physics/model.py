@@ -44,7 +44,7 @@ Physics (derived here, not transcribed from the OCR-damaged Eqs 5.31-5.41)
 * PID on the finger angles (Eq 5.42): u_INi = -Kp (theta_i - theta_i^d) - Kd dtheta_i/dt - Ki z_i.
 
 All functions are compiled with numba (``cache=True``) and written in scalar form so that the
-integrator in :mod:`softhand_env.kernel` allocates nothing per substep; each one is also callable
+integrator in :mod:`.kernel` allocates nothing per substep; each one is also callable
 from Python.
 """
 
@@ -55,7 +55,7 @@ import math
 import numpy as np
 from numba import njit
 
-from softhand_env.params import HandParams
+from softhand_env.physics.params import HandParams
 
 #: Number of generalized coordinates.
 NQ = 9
@@ -155,7 +155,7 @@ _C6 = -1.13596475577881948265e-11
 def sincos(x):
     """(sin x, cos x) in straight-line floating-point code (no libm call, no branch).
 
-    Used by the model's right-hand side so that the lane kernel of :mod:`softhand_env.kernel`
+    Used by the model's right-hand side so that the lane kernel of :mod:`.kernel`
     vectorises across systems (a libm call would stop LLVM's loop vectoriser) and the
     single-system kernel computes exactly the same function. Error <= 1 ulp against libm for
     |x| < 1e5 (tested to 2 ulp over that range); accurate to ~|x| 1e-26 absolute up to
@@ -352,15 +352,30 @@ def potential_forces(q, p, prm, f):
     _all_terms(q, p, prm, Phi, b, C, f)
 
 
+@njit(cache=True, error_model="numpy", fastmath=_FASTMATH, inline="always")
+def pid_torque(theta, setpoint, omega, z, kp, kd, ki):
+    """PID joint torque of Eq 5.42 (N m): ``-Kp (theta - theta^d) - Kd omega - Ki z``.
+
+    The single definition, inlined into :func:`csm_terms` and :func:`pid_torques`.
+    ``theta``, ``setpoint`` in rad, ``omega`` in rad/s, ``z`` the PID integral (rad s).
+    """
+    return -kp * (theta - setpoint) - kd * omega - ki * z
+
+
 @njit(cache=True)
 def pid_torques(y, u, prm, tau):
     """PID joint torques of Eq 5.42 (N m) for state y (20,) and set-points u (2,) into tau (2,)."""
     for i in range(2):
-        tau[i] = (
-            -prm[P_KP] * (y[TH_1 + i] - u[i])
-            - prm[P_KD] * y[NQ + TH_1 + i]
-            - prm[P_KI] * y[2 * NQ + i]
+        tau[i] = pid_torque(
+            y[TH_1 + i], u[i], y[NQ + TH_1 + i], y[2 * NQ + i], prm[P_KP], prm[P_KD], prm[P_KI]
         )
+
+
+@njit(cache=True)
+def pid_torques_batch(Y, U, PRM, TAU):
+    """:func:`pid_torques` for each row of Y (N, 20), U (N, 2), PRM (N, N_PARAMS) into TAU."""
+    for s in range(Y.shape[0]):
+        pid_torques(Y[s], U[s], PRM[s], TAU[s])
 
 
 @njit(cache=True, error_model="numpy", fastmath=_FASTMATH, inline="always")
@@ -378,7 +393,7 @@ def csm_terms(y, u, prm):
 
     ``y`` (state, >= 20 entries), ``u`` (2 set-points) and ``prm`` (N_PARAMS) may be float64
     arrays or tuples of floats: :func:`csm_rhs` passes arrays, the lane kernel of
-    :mod:`softhand_env.kernel` tuples loaded from its structure-of-arrays block, and the
+    :mod:`softhand_env.physics.kernel` tuples loaded from its structure-of-arrays block, and the
     function is inlined (numba IR) into both, so that both compile the same source (in
     strict IEEE arithmetic, see ``_FASTMATH``: the two give bit-identical results).
 
@@ -394,8 +409,8 @@ def csm_terms(y, u, prm):
     w1 = y[NQ + TH_1]
     w2 = y[NQ + TH_2]
     # PID torques (Eq 5.42)
-    tau1 = -prm[P_KP] * (y[TH_1] - u[0]) - prm[P_KD] * w1 - prm[P_KI] * y[2 * NQ]
-    tau2 = -prm[P_KP] * (y[TH_2] - u[1]) - prm[P_KD] * w2 - prm[P_KI] * y[2 * NQ + 1]
+    tau1 = pid_torque(y[TH_1], u[0], w1, y[2 * NQ], prm[P_KP], prm[P_KD], prm[P_KI])
+    tau2 = pid_torque(y[TH_2], u[1], w2, y[2 * NQ + 1], prm[P_KP], prm[P_KD], prm[P_KI])
     fx = 0.0
     fy = -prm[P_MOBJ] * prm[P_G]
     fo = fo1 + fo2

@@ -52,7 +52,7 @@ from typing import Any
 
 import numpy as np
 
-CONFIG_DIR = Path(__file__).resolve().parent / "configs"
+CONFIG_DIR = Path(__file__).resolve().parents[1] / "configs"
 
 #: Allowed values of :attr:`HandParams.cross_term`.
 CROSS_TERMS = ("uniform", "printed")
@@ -200,7 +200,7 @@ def is_finite_real(value: Any) -> bool:
     if isinstance(value, (bool, np.bool_)):
         return False
     if isinstance(value, (int, np.integer)):
-        return abs(value) <= sys.float_info.max
+        return bool(abs(int(value)) <= sys.float_info.max)
     return isinstance(value, (float, np.floating)) and math.isfinite(value)
 
 
@@ -263,9 +263,12 @@ def hand_params_from_dict(
     except ValueError as exc:
         # a cross-field check (or rounding at a range end): name the YAML key the user wrote
         msg = str(exc)
-        field = msg.split(" ", 1)[0]
-        key = _FIELD_TO_KEY.get(field)
-        prefix = f"{key}: " if key is not None and key in data and key != field else ""
+        bad_field = msg.split(" ", 1)[0]
+        bad_key = _FIELD_TO_KEY.get(bad_field)
+        prefix = (
+            f"{bad_key}: " if bad_key is not None and bad_key in data and bad_key != bad_field
+            else ""
+        )
         raise ValueError(f"{source}: {prefix}{msg}") from None
 
 

@@ -35,7 +35,8 @@ import math
 import numpy as np
 from numba import njit, prange
 
-from softhand_env.model import (
+from softhand_env.physics.contact import beyond_base
+from softhand_env.physics.model import (
     _FASTMATH,
     DN_1,
     N_DIAG,
@@ -138,20 +139,29 @@ def _maybe_fatal(total, d1, d2, a):
     return not ((total - total == 0.0) & (d1 >= 0.0) & (d1 < a) & (d2 >= 0.0) & (d2 < a))
 
 
+#: The past-the-base test compiled for the kernels (one source: :func:`contact.beyond_base`).
+_beyond_base = njit(cache=True, inline="always")(beyond_base)
+
+
 @njit(cache=True)
-def base_exceeded(y, prm):
-    """True if a contact circle has passed its fingertip base (tan theta_p > (a-d)/a_c)."""
-    a = prm[P_A]
+def past_base(y, a, limit):
+    """True if a contact circle of state ``y`` (20,) reaches past its fingertip base by more
+    than ``limit`` (1 = at the base, see :func:`softhand_env.physics.contact.beyond_base`); a finger
+    with d_n outside (0, a) has no contact circle."""
     for i in range(2):
         dn = y[DN_1 + i]
         if dn <= 0.0 or dn >= a:
             continue
         sgn = -1.0 if i == 0 else 1.0
-        tp = math.tan(y[TH_1 + i] + sgn * y[TH_OBJ])
-        ac = math.sqrt(a * a - (a - dn) ** 2)
-        if abs(tp) * ac > (a - dn):
+        if _beyond_base(dn, y[TH_1 + i] + sgn * y[TH_OBJ], a, limit):
             return True
     return False
+
+
+@njit(cache=True)
+def base_exceeded(y, prm):
+    """True if a contact circle has passed its fingertip base (``FLAG_BASE``)."""
+    return past_base(y, prm[P_A], 1.0)
 
 
 @njit(cache=True)
@@ -190,6 +200,8 @@ def _advance_one(y, u, prm, n, ch_limit, diag, k, work):
     else:
         diag[0] = ch_max
         diag[1] = cn_max
+    if diag.shape[0] > 2:
+        diag[2] = done
     return flags, done
 
 
@@ -200,17 +212,18 @@ def advance(y, u, prm, n, ch_limit, diag):
     Parameters
     ----------
     y : ndarray, shape (20,), float64, modified in place
-        State [q, p, z] (see :mod:`softhand_env.model`).
+        State [q, p, z] (see :mod:`softhand_env.physics.model`).
     u : ndarray, shape (2,)
         Finger-angle set-points (rad), held constant over the call.
     prm : ndarray, shape (N_PARAMS,)
-        Packed parameters (:func:`softhand_env.model.pack_params`).
+        Packed parameters (:func:`softhand_env.physics.model.pack_params`).
     n : int
         Number of substeps.
     ch_limit : float
         |C^H| (m) above which the state is flagged as diverged.
-    diag : ndarray, shape (2,), output
-        max |C^H| (m) and max |C^N| (m/s) over the states visited.
+    diag : ndarray, shape (2,) or (3,), output
+        max |C^H| (m) and max |C^N| (m/s) over the states visited; a third entry, if present,
+        receives the number of substeps taken.
 
     Returns
     -------
@@ -227,7 +240,7 @@ def advance(y, u, prm, n, ch_limit, diag):
 # ------------------------------------------------------------------------------ lane kernel
 # The batched kernel integrates blocks of LANES systems at once in structure-of-arrays form:
 # quantity j of lane l lives at [j * LANES + l] of a flat float64 array, so the loop over the
-# lanes of :func:`_rhs_lanes` (the model's :func:`~softhand_env.model.csm_terms`, inlined) is
+# lanes of :func:`_rhs_lanes` (the model's :func:`.model.csm_terms`, inlined) is
 # a loop of unit-stride loads and stores that LLVM vectorises across systems (one AVX-512
 # register = 8 lanes, 2 per block; 4 lanes per AVX2 register). The model's sin/cos is
 # straight-line code (model.sincos): a libm call would stop the vectoriser. The arithmetic
@@ -375,7 +388,7 @@ def _advance_block(Y, U, PRM, n, ch_limit, DIAG, FLAGS, systems):
         for j in range(NY):
             Hl[j * LANES + l] = PRM[s, P_DT]
     n_live = m
-    for _ in range(n):
+    for step in range(n):
         _rk4_lanes(Yl, Pl, Hl, K1, K2, K3, K4, Tl, nl)
         if _lanes_suspect(Yl, Pl, CHM, CNM, K1, nl) == 0:
             continue
@@ -392,6 +405,8 @@ def _advance_block(Y, U, PRM, n, ch_limit, DIAG, FLAGS, systems):
                 FLAGS[s] = flags
                 DIAG[s, 0] = CHM[l]
                 DIAG[s, 1] = CNM[l]
+                if DIAG.shape[1] > 2:
+                    DIAG[s, 2] = step + 1
                 live[l] = False
                 n_live -= 1
         if n_live == 0:
@@ -420,11 +435,75 @@ def _advance_block(Y, U, PRM, n, ch_limit, DIAG, FLAGS, systems):
             for j in range(NY):
                 y[j] = Yl[j * LANES + l]
             FLAGS[s] = _finish(y, U[s], PRM[s], CHM[l], CNM[l], ch_limit, DIAG[s], k, work)
+            if DIAG.shape[1] > 2:
+                DIAG[s, 2] = n
+
+
+@njit(cache=True)
+def _plan_blocks(FLAGS):
+    """Systems to advance (those without ``FLAG_SKIP`` or a fatal flag) and the block width.
+
+    Returns (active (n_active,) indices, width): blocks of LANES systems; fewer than 4 full
+    blocks go in half blocks (less padding, more blocks to share among threads; a full block
+    costs ~15% less per system), and up to 2 * _SCALAR_MAX systems one by one (threads share
+    them; a lane block would not be faster).
+    """
+    N = FLAGS.shape[0]
+    active = np.empty(N, dtype=np.int64)
+    n_active = 0
+    for s in range(N):
+        if not FLAGS[s] & (FATAL_FLAGS | FLAG_SKIP):
+            active[n_active] = s
+            n_active += 1
+    if n_active >= 4 * LANES:
+        width = LANES
+    elif n_active > 2 * _SCALAR_MAX:
+        width = LANES // 2
+    else:
+        width = 1
+    return active[:n_active], width
 
 
 @njit(cache=True, parallel=True)
-def advance_batch(Y, U, PRM, n, ch_limit, DIAG, FLAGS):
+def _advance_parallel(Y, U, PRM, n, ch_limit, DIAG, FLAGS):
+    """:func:`advance_batch` with the blocks in parallel over numba threads."""
+    active, width = _plan_blocks(FLAGS)
+    n_active = active.shape[0]
+    n_blocks = (n_active + width - 1) // width
+    for b in prange(n_blocks):
+        _advance_block(
+            Y, U, PRM, n, ch_limit, DIAG, FLAGS,
+            active[b * width : min((b + 1) * width, n_active)],
+        )
+
+
+@njit(cache=True)
+def _advance_serial(Y, U, PRM, n, ch_limit, DIAG, FLAGS):
+    """:func:`advance_batch` with the blocks one after the other on the calling thread."""
+    active, width = _plan_blocks(FLAGS)
+    n_active = active.shape[0]
+    n_blocks = (n_active + width - 1) // width
+    for b in range(n_blocks):
+        _advance_block(
+            Y, U, PRM, n, ch_limit, DIAG, FLAGS,
+            active[b * width : min((b + 1) * width, n_active)],
+        )
+
+
+def advance_batch(
+    Y: np.ndarray,
+    U: np.ndarray,
+    PRM: np.ndarray,
+    n: int,
+    ch_limit: float,
+    DIAG: np.ndarray,
+    FLAGS: np.ndarray,
+) -> None:
     """Advance ``N`` independent systems ``n`` substeps each, in place, in parallel.
+
+    A single system runs on the calling thread: a parallel region would only add its launch
+    and, on a loaded machine, the wait for a descheduled worker thread (milliseconds), for
+    nothing to share.
 
     Parameters
     ----------
@@ -435,34 +514,17 @@ def advance_batch(Y, U, PRM, n, ch_limit, DIAG, FLAGS):
         Packed parameters per system (may be a broadcast view of one vector).
     n : int
     ch_limit : float
-    DIAG : ndarray, shape (N, 2), output
-        max |C^H| (m), max |C^N| (m/s) per system.
+    DIAG : ndarray, shape (N, 2) or (N, 3), output
+        max |C^H| (m), max |C^N| (m/s) per system; a third column, if present, receives the
+        substeps taken (< n only for a system stopped by a fatal flag).
     FLAGS : ndarray of int64, shape (N,), output
         Status flags per system. On entry, systems carrying ``FLAG_SKIP`` or a fatal flag
         are skipped (their flags are kept); the others get their new flags.
     """
-    N = Y.shape[0]
-    active = np.empty(N, dtype=np.int64)
-    n_active = 0
-    for s in range(N):
-        if not FLAGS[s] & (FATAL_FLAGS | FLAG_SKIP):
-            active[n_active] = s
-            n_active += 1
-    # blocks of LANES systems; fewer than 4 full blocks go in half blocks (less padding, more
-    # blocks to share among threads; a full block costs ~15% less per system), and up to
-    # 2 * _SCALAR_MAX systems one by one (threads share them; a lane block would not be faster)
-    if n_active >= 4 * LANES:
-        width = LANES
-    elif n_active > 2 * _SCALAR_MAX:
-        width = LANES // 2
+    if Y.shape[0] == 1:
+        _advance_serial(Y, U, PRM, n, ch_limit, DIAG, FLAGS)
     else:
-        width = 1
-    n_blocks = (n_active + width - 1) // width
-    for b in prange(n_blocks):
-        _advance_block(
-            Y, U, PRM, n, ch_limit, DIAG, FLAGS,
-            active[b * width : min((b + 1) * width, n_active)],
-        )
+        _advance_parallel(Y, U, PRM, n, ch_limit, DIAG, FLAGS)
 
 
 def advance_batch_py(
@@ -493,4 +555,5 @@ __all__ = [
     "advance_batch",
     "advance_batch_py",
     "base_exceeded",
+    "past_base",
 ]

@@ -12,9 +12,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from softhand_env.model import NY, Q_NAMES
-from softhand_env.params import HandParams
-from softhand_env.physics import HandPhysics
+from softhand_env.physics.hand import HandPhysics
+from softhand_env.physics.model import NY, Q_NAMES
+from softhand_env.physics.params import HandParams
 
 #: Motions 1-8 of §5.5.1: (theta_1^d, theta_2^d) in degrees, from the parallel initial state.
 PAPER_MOTIONS_DEG: tuple[tuple[float, float], ...] = (

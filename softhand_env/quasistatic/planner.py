@@ -26,7 +26,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from softhand_env.params import HandParams
+from softhand_env.physics.params import HandParams
 from softhand_env.quasistatic import (
     DEFAULT_STEP,
     QuasiStaticPath,

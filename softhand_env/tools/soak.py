@@ -1,6 +1,6 @@
 """Soak test of the native vector env (memory, throughput, termination reasons).
 
-Usage: ``python -m softhand_env.soak --steps 1000000 --num-envs 512``.
+Usage: ``python -m softhand_env.tools.soak --steps 1000000 --num-envs 512``.
 
 Steps :class:`~softhand_env.envs.SoftHandVectorEnv` (``gym.make_vec(...,
 vectorization_mode="vector_entry_point")``, NextStep autoreset) with seeded uniform random
@@ -85,6 +85,7 @@ def soak(
 
     envs = gym.make_vec(env_id, num_envs=num_envs, vectorization_mode="vector_entry_point")
     space = envs.action_space
+    assert isinstance(space, gym.spaces.Box)
     low, high = space.low.astype(np.float64), space.high.astype(np.float64)
     rng = np.random.default_rng(seed)
     reasons: Counter[str] = Counter()
@@ -102,8 +103,8 @@ def soak(
             if done.any():
                 counts["episodes"] += int(done.sum())
                 counts["truncations"] += int((truncated & ~terminated).sum())
-                if "termination_reason" in info:
-                    reasons.update(info["termination_reason"][info["_termination_reason"]])
+                ended = info["termination_reason"][terminated]  # None while running
+                reasons.update(r for r in ended if r is not None)
             if progress and time.perf_counter() - last >= report_every:
                 last = time.perf_counter()
                 print(

@@ -1,6 +1,6 @@
 """Benchmark: wall time of the Sec. 4.3 handling process for the paper's five grasp angles.
 
-Run ``python -m softhand_env.bench_quasistatic [--repeat N] [--step-deg 0.1]``. The first call
+Run ``python -m softhand_env.tools.bench_quasistatic [--repeat N] [--step-deg 0.1]``. The first call
 compiles (or loads from numba's on-disk cache) the Newton kernel; that time is printed
 separately and excluded from the timed runs.
 """
@@ -12,7 +12,7 @@ import math
 import time
 from collections.abc import Sequence
 
-from softhand_env.params import load_hand_params
+from softhand_env.physics.params import load_hand_params
 from softhand_env.quasistatic import PAPER_GRASP_ANGLES, handling_process, linear_path, solve_path
 
 
@@ -35,7 +35,7 @@ def bench(repeat: int = 3, step_deg: float = 0.1) -> dict[str, float]:
 
 def main(argv: Sequence[str] | None = None) -> int:
     """Command-line entry point; prints the timings."""
-    ap = argparse.ArgumentParser(prog="python -m softhand_env.bench_quasistatic",
+    ap = argparse.ArgumentParser(prog="python -m softhand_env.tools.bench_quasistatic",
                                  description=__doc__.splitlines()[0])
     ap.add_argument("--repeat", type=int, default=3, help="timed repetitions (default 3)")
     ap.add_argument("--step-deg", type=float, default=0.1, help="increment in deg (default 0.1)")

@@ -1,0 +1,257 @@
+"""The transition both environments run: N episodes of one configuration, stepped together.
+
+:class:`EpisodeBatch` holds a :class:`~softhand_env.physics.HandPhysics` of N hands and the
+per-episode arrays around it (goals, observations, reward terms, info values). One control step
+is :meth:`EpisodeBatch.step`::
+
+    actions -> set-points -> physics.step (kernel, rollback, failure classification)
+            -> task.evaluate -> observation -> info values
+
+:class:`~softhand_env.envs.SoftHandEnv` is N = 1 of it (its ``info`` is row 0 of
+:meth:`EpisodeBatch.info_values`); :class:`~softhand_env.envs.SoftHandVectorEnv` is N
+environments (its batched info masks the same values). Both therefore compute the same
+numbers the same way; the vector env agrees bit for bit with N single environments.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from typing import Any
+
+import numpy as np
+
+from softhand_env.envs.config import EnvConfig
+from softhand_env.envs.observation import add_frame_noise, observe_rows
+from softhand_env.envs.start import start_episode
+from softhand_env.physics.hand import HandPhysics
+
+
+def _generator(rngs: Sequence[np.random.Generator | None], i: Any) -> np.random.Generator:
+    """Generator of environment ``i`` (seeded by every reset before it is used)."""
+    rng = rngs[int(i)]
+    if rng is None:
+        raise RuntimeError(f"environment {int(i)} has no random generator: call reset first")
+    return rng
+
+
+class EpisodeBatch:
+    """N episodes of the environment configured by ``cfg`` (see module doc).
+
+    Parameters
+    ----------
+    cfg : EnvConfig
+    num_envs : int or None
+        N >= 1 episodes; None is one episode whose physics has the one-hand shapes
+        (``physics.get_state()`` is (20,), see :class:`~softhand_env.physics.HandPhysics`).
+
+    Attributes
+    ----------
+    physics : HandPhysics
+        The N hands.
+    goal : ndarray, shape (N, goal_dim)
+        Goals (SI units).
+    obs : ndarray of float32, shape (N, obs_size)
+        Current observations.
+    terms : ndarray, shape (n_terms, N)
+        Reward terms of the last step (0 after a reset), ordered as ``cfg.task.terms``.
+    constraint_error : ndarray, shape (N, 2)
+        max |C^H| (m), max |C^N| (m/s) of the last step (at a reset: of the start state).
+    flags : ndarray of int64, shape (N,)
+        Kernel status flags of the last step (0 after a reset).
+    grasped, success : ndarray of bool, shape (N,)
+    reason : ndarray of object, shape (N,)
+        Termination reason of the last step (a failure name or ``"success"``), else None.
+    """
+
+    def __init__(self, cfg: EnvConfig, num_envs: int | None):
+        n = 1 if num_envs is None else int(num_envs)
+        self.cfg = cfg
+        self.task = cfg.task
+        self.num_envs = n
+        self.physics = HandPhysics(
+            cfg.params,
+            num_hands=num_envs,
+            ch_limit=cfg.ch_limit,
+            dn_limit=cfg.dn_limit,
+            base_limit=cfg.base_limit,
+        )
+        self.goal = np.zeros((n, cfg.task.goal_dim))
+        self.obs = np.zeros((n, cfg.layout.size), dtype=np.float32)
+        self.terms = np.zeros((len(cfg.task.terms), n))
+        self.constraint_error = np.zeros((n, 2))
+        self.flags = np.zeros(n, dtype=np.int64)
+        self.grasped = np.zeros(n, dtype=bool)
+        self.success = np.zeros(n, dtype=bool)
+        self.reason = np.full(n, None, dtype=object)
+        self._goal_cols: tuple[Any, ...] = ()
+        self._refresh_goal_columns()
+        self._r = self.physics.readouts()
+
+    def _refresh_goal_columns(self) -> None:
+        """Goal coordinates as the task reads them: floats for one episode (the task's scalar
+        arithmetic is several times faster than on (1,) arrays), else (N,) columns."""
+        if self.num_envs == 1:
+            self._goal_cols = tuple(self.goal[0].tolist())
+        else:
+            self._goal_cols = tuple(self.goal.T)
+
+    # ------------------------------------------------------------------------------ reset
+    def start(self, i: int, rng: np.random.Generator | None, goal: Any = None) -> None:
+        """Start a new episode in environment ``i`` (draws from ``rng``, see
+        :func:`~softhand_env.envs.start.start_episode`); call :meth:`finish_reset` next."""
+        start = start_episode(self.cfg, _generator((rng,), 0), goal)
+        self.physics.reset_hand(i, start.state, start.setpoint, start.params)
+        self.goal[i] = start.goal
+        self.terms[:, i] = 0.0
+        self.flags[i] = 0
+        self.reason[i] = None
+        self._refresh_goal_columns()
+
+    def finish_reset(
+        self, mask: np.ndarray, rngs: Sequence[np.random.Generator | None]
+    ) -> None:
+        """Start-state info and observations of the environments of ``mask`` (bool (N,)) just
+        started: the first frame in every history slot (noise drawn once from ``rngs[i]``),
+        then the goal."""
+        p = self.physics
+        r = self._r = p.readouts()
+        grasped = (r.deformation[:, 0] > 0.0) & (r.deformation[:, 1] > 0.0)
+        _, success = self._evaluate(r.object_pose, np.zeros(self.num_envs),
+                                    np.zeros(self.num_envs, dtype=bool), grasped)
+        self.constraint_error[mask] = p.constraint_error.reshape(self.num_envs, 2)[mask]
+        self.grasped[mask] = grasped[mask]
+        self.success[mask] = np.broadcast_to(success, (self.num_envs,))[mask]
+        layout = self.cfg.layout
+        f, h = layout.frame_size, layout.history_size
+        frames = self._frames()
+        goal_obs = self.task.goal_observation(self.goal)
+        noise = self.cfg.randomization.obs_noise
+        for i in np.flatnonzero(mask):
+            out = self.obs[i]
+            out[h:] = goal_obs[i]
+            out[:f] = frames[i]
+            if noise > 0:
+                add_frame_noise(out[:f], noise, _generator(rngs, i))
+            for k in range(1, layout.history_len):
+                out[k * f : (k + 1) * f] = out[:f]
+
+    def _evaluate(
+        self, pose: np.ndarray, ctrl: np.ndarray, failed: np.ndarray, grasped: np.ndarray
+    ) -> tuple[tuple[Any, ...], Any]:
+        """The task's reward terms and success for object poses (N, 3) (one episode: on
+        Python scalars, see :meth:`_refresh_goal_columns`)."""
+        if self.num_envs == 1:
+            return self.task.evaluate(
+                tuple(pose[0].tolist()), self._goal_cols, float(ctrl[0]), bool(failed[0]),
+                bool(grasped[0]),
+            )
+        return self.task.evaluate(tuple(pose.T), self._goal_cols, ctrl, failed, grasped)
+
+    def _frames(self) -> np.ndarray:
+        """The newest observation frame of every environment, float32 (N, frame_size)."""
+        r = self._r
+        out = np.empty((self.num_envs, self.cfg.layout.frame_size), dtype=np.float32)
+        observe_rows(
+            r.finger_angles,
+            r.finger_velocities,
+            r.setpoint,
+            r.joint_torques,
+            r.deformation,
+            self.cfg.layout.tactile,
+            out,
+        )
+        return out
+
+    # ------------------------------------------------------------------------------- step
+    def step(
+        self,
+        actions: np.ndarray,
+        rngs: Sequence[np.random.Generator | None],
+        skip: np.ndarray | None = None,
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """One control step of every environment (those of ``skip`` stay untouched).
+
+        Parameters
+        ----------
+        actions : ndarray, shape (N, 2)
+        rngs : sequence of N generators
+            Observation noise of environment i comes from ``rngs[i]``.
+        skip : ndarray of bool, shape (N,), optional
+            Environments that restart instead of stepping (their rows are overwritten by the
+            caller's reset; no noise is drawn for them).
+
+        Returns
+        -------
+        reward : ndarray, shape (N,)
+        terminated : ndarray of bool, shape (N,)
+        """
+        cfg, n = self.cfg, self.num_envs
+        u, ctrl = cfg.actions.setpoints(actions, self.physics.setpoint.reshape(n, 2))
+        status = self.physics.step(u, cfg.n_substeps, strict=False, skip=skip).hands
+        failed, grasped = status.failed, status.grasped
+        r = self._r = self.physics.readouts()
+        terms, success = self._evaluate(r.object_pose, ctrl, failed, grasped)
+        if n == 1:
+            self.terms[:, 0] = terms
+        elif terms:
+            self.terms[:] = terms
+        self.grasped[:] = grasped
+        self.success[:] = success
+        self.flags[:] = status.flags
+        self.constraint_error[:] = status._diag[:, :2]
+        terminated = failed | (self.success & self.task.terminate_on_success)
+        self.reason[:] = status.reason
+        if self.task.terminate_on_success:
+            self.reason[terminated & ~failed] = "success"
+        # observations: shift the history, write the newest frames
+        layout = cfg.layout
+        f, h = layout.frame_size, layout.history_size
+        if h > f:
+            self.obs[:, f:h] = self.obs[:, : h - f]
+        self.obs[:, :f] = self._frames()
+        noise = cfg.randomization.obs_noise
+        if noise > 0:
+            rows = range(n) if skip is None else np.flatnonzero(~skip)
+            for i in rows:
+                add_frame_noise(self.obs[i, :f], noise, _generator(rngs, i))
+        return self.terms.sum(axis=0), terminated
+
+    # ------------------------------------------------------------------------------- info
+    def info_values(self) -> dict[str, np.ndarray]:
+        """Per-environment info values (row i is environment i's ``info``), in key order.
+
+        ``object_pose`` (N, 3) (x, y, theta; m, m, rad), ``deformation`` (N, 4) (d_n1, d_n2,
+        d_t1, d_t2; m), ``constraint_error`` (N, 2) (max |C^H| in m, max |C^N| in m/s over the
+        step), ``grasped`` (N,), ``is_success`` (N,), ``setpoint`` (N, 2) (rad),
+        ``physics_flags`` (N,) (kernel status bits), ``termination_reason`` (N,) (None while
+        the episode runs), ``goal`` (N, goal_dim) for goal tasks, then the reward terms (N,).
+        Fresh arrays.
+        """
+        return {key: value.copy() for key, value in self._info_arrays().items()}
+
+    def info(self, i: int = 0) -> dict[str, Any]:
+        """``info`` of environment ``i`` as a single environment returns it: the row i of
+        :meth:`info_values`, with Python scalars for the scalar keys."""
+        return {
+            key: value[i].copy() if value.ndim > 1 else value.item(i)
+            for key, value in self._info_arrays().items()
+        }
+
+    def _info_arrays(self) -> dict[str, np.ndarray]:
+        """The arrays behind :meth:`info_values` (not copied: callers copy)."""
+        r = self._r
+        values: dict[str, np.ndarray] = {
+            "object_pose": r.object_pose,
+            "deformation": r.deformation,
+            "constraint_error": self.constraint_error,
+            "grasped": self.grasped,
+            "is_success": self.success,
+            "setpoint": r.setpoint,
+            "physics_flags": self.flags,
+            "termination_reason": self.reason,
+        }
+        if self.task.goal_dim:
+            values["goal"] = self.goal
+        for k, name in enumerate(self.task.terms):
+            values[name] = self.terms[k]
+        return values

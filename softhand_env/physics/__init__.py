@@ -1,0 +1,66 @@
+"""The physics stack of the soft hand, bottom to top.
+
+:mod:`.params` (hand parameters, SI) -> :mod:`.contact` (chapter 2-3 fingertip models) ->
+:mod:`.model` (chapter-5 dynamic model as compiled functions) -> :mod:`.integrate` (RK
+tableaus) / :mod:`.kernel` (compiled RK4 kernels, one system or N in lanes) ->
+:mod:`.failure` (failure classification) -> :mod:`.hand` (:class:`HandPhysics`: N hands,
+stepping, rollback, named read-outs); :mod:`.reference` is an independent plain-NumPy model for
+cross-checks.
+
+The names of :mod:`.hand` are available here (``from softhand_env.physics import
+HandPhysics``); they are imported on first use, so that importing a light submodule such as
+:mod:`.params` does not load the compiled kernels.
+"""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING, Any
+
+if TYPE_CHECKING:
+    from softhand_env.physics.hand import (
+        FLAG_NAMES,
+        RK4_REAL_STABILITY,
+        HandPhysics,
+        HandReadouts,
+        PhysicsError,
+        StepStatus,
+        check_rk4_stability,
+        describe_flags,
+        rk4_stability_margins,
+        warn_if_unstable,
+    )
+
+_HAND_NAMES = (
+    "HandPhysics",
+    "HandReadouts",
+    "PhysicsError",
+    "StepStatus",
+    "check_rk4_stability",
+    "describe_flags",
+    "rk4_stability_margins",
+    "warn_if_unstable",
+    "RK4_REAL_STABILITY",
+    "FLAG_NAMES",
+)
+
+
+def __getattr__(name: str) -> Any:
+    if name in _HAND_NAMES:
+        from softhand_env.physics import hand
+
+        return getattr(hand, name)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+
+
+__all__ = [
+    "FLAG_NAMES",
+    "RK4_REAL_STABILITY",
+    "HandPhysics",
+    "HandReadouts",
+    "PhysicsError",
+    "StepStatus",
+    "check_rk4_stability",
+    "describe_flags",
+    "rk4_stability_margins",
+    "warn_if_unstable",
+]

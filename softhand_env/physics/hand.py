@@ -1,0 +1,567 @@
+"""Physics of the soft hand: owns the states of N hands, advances them, classifies failures.
+
+:class:`HandPhysics` is the dm_control-style Physics object both environments use: it holds
+the 20-element states of :mod:`softhand_env.physics.model` of N >= 1 hands with their packed
+parameters and set-points, advances them together with the lane-batched kernel
+(:func:`softhand_env.physics.kernel.advance_batch`) under constant finger-angle set-points, rolls a
+hand whose state became non-finite back to its state before the step, classifies every hand's
+failure (:func:`softhand_env.physics.failure.classify`) and reports it in a :class:`StepStatus`
+(``strict=True`` raises :class:`PhysicsError` on divergence instead). Environment code reads
+the hands through the named read-outs (``object_pose``, ``finger_angles``, ...), never through
+state indices. Every read-out returns a copy.
+
+Shapes: ``HandPhysics(params)`` is one hand and its read-outs have no hand axis (``object_pose``
+is (3,)); ``HandPhysics(params, num_hands=N)`` (N >= 1, the environments' form) gives every
+read-out and status field a leading hand axis (``object_pose`` is (N, 3)).
+"""
+
+from __future__ import annotations
+
+import math
+import warnings
+from typing import Any, NamedTuple
+
+import numpy as np
+from numba import njit
+
+from softhand_env.physics import kernel
+from softhand_env.physics.failure import REASONS, classify
+from softhand_env.physics.model import (
+    DN_1,
+    DT_1,
+    N_DIAG,
+    NQ,
+    NY,
+    TH_1,
+    X_OBJ,
+    constraint_residuals,
+    csm_rhs,
+    initial_state,
+    pack_params,
+    pid_torques_batch,
+)
+from softhand_env.physics.params import HandParams
+
+
+class PhysicsError(RuntimeError):
+    """The simulated state left the model's validity (NaN or constraint blow-up)."""
+
+    def __init__(self, message: str, flags: int):
+        super().__init__(message)
+        self.flags = flags
+
+
+FLAG_NAMES = {
+    kernel.FLAG_NONFINITE: "nonfinite_state",
+    kernel.FLAG_CONSTRAINT: "constraint_violation",
+    kernel.FLAG_LOST: "grasp_lost",
+    kernel.FLAG_OVERCOMPRESSED: "overcompressed",
+    kernel.FLAG_BASE: "contact_past_base",
+}
+
+
+def describe_flags(flags: int) -> list[str]:
+    """Names of the status flags set in ``flags`` (see :mod:`softhand_env.physics.kernel`)."""
+    return [name for bit, name in FLAG_NAMES.items() if flags & bit]
+
+
+#: Extent of classic RK4's stability region on the negative real axis (|h lambda| <= 2.785).
+RK4_REAL_STABILITY = 2.785
+
+
+def rk4_stability_margins(params: HandParams) -> dict[str, float]:
+    """|lambda| dt of the stiffest modes of the model, to compare with RK4's limit 2.785.
+
+    Modes: the holonomic Baumgarte dynamics (double root -alpha), the non-holonomic one
+    (-beta), and the compression and bending modes of a fingertip at d_n = a/2 (stiffness
+    2 pi E d_n / cos^2 theta_p with theta_p = 0, resp. 2 k_b pi E d_n, on the deformation
+    inertia with the viscous damping c_n, c_t). Joint modes are left out: through the
+    constraints the fingers carry the deformation inertia, which keeps them far from the
+    limit for any plausible gains.
+
+    Returns
+    -------
+    dict
+        Mode name -> |lambda|_max * dt (dimensionless).
+    """
+
+    def fastest_root(m: float, c: float, k: float) -> float:
+        disc = c * c - 4.0 * m * k
+        if disc >= 0:
+            return (c + math.sqrt(disc)) / (2.0 * m)
+        return math.sqrt(k / m)
+
+    dn = params.a / 2
+    k_n = 2.0 * math.pi * params.E * dn
+    k_t = 2.0 * params.bending * math.pi * params.E * dn
+    m = params.m_deform
+    return {
+        "holonomic (alpha)": params.alpha * params.dt,
+        "non-holonomic (beta)": params.beta * params.dt,
+        "compression": fastest_root(m, params.c_n, k_n) * params.dt,
+        "bending": fastest_root(m, params.c_t, k_t) * params.dt,
+    }
+
+
+def check_rk4_stability(params: HandParams) -> list[str]:
+    """Names of the modes whose |lambda| dt exceeds RK4's stability limit (empty if none)."""
+    return [k for k, v in rk4_stability_margins(params).items() if v > RK4_REAL_STABILITY]
+
+
+def warn_if_unstable(params: HandParams, stacklevel: int = 2) -> None:
+    """Emit a ``RuntimeWarning`` naming the modes beyond RK4's stability limit, if any."""
+    unstable = check_rk4_stability(params)
+    if unstable:
+        margins = rk4_stability_margins(params)
+        detail = ", ".join(f"{k}: |lambda| dt = {margins[k]:.2f}" for k in unstable)
+        warnings.warn(
+            f"RK4 step dt = {params.dt:g} s is beyond the stability limit "
+            f"({RK4_REAL_STABILITY}) of the {detail}; expect divergence (reduce dt)",
+            RuntimeWarning,
+            stacklevel=stacklevel + 1,
+        )
+
+
+_REASON_NAMES = np.array((None, *REASONS), dtype=object)
+
+
+class StepStatus:
+    """Outcome of :meth:`HandPhysics.step`, per hand.
+
+    Every attribute has the physics' hand shape: a scalar for a one-hand
+    ``HandPhysics(params)``, an array with a leading axis of N hands for
+    ``HandPhysics(params, num_hands=N)``. Further per-step diagnostics are added as further
+    attributes of the same shape.
+
+    Attributes
+    ----------
+    flags : int or ndarray of int64
+        Bitwise OR of the kernel status flags (0 = valid); ``FLAG_CONSTRAINT`` wherever the
+        step's max |C^H| exceeded ``ch_limit``.
+    substeps : int or ndarray of int64
+        RK4 substeps taken (fewer than requested only if a fatal flag stopped integration).
+    max_ch : float or ndarray
+        Largest |C^H| (m) over the visited states (+inf if non-finite in a failed hand).
+    max_cn : float or ndarray
+        Largest |C^N| (m/s) over the visited states (+inf if non-finite in a failed hand).
+    failed : bool or ndarray of bool
+        A physical failure (see :mod:`softhand_env.physics.failure`): the episode must end.
+    grasped : bool or ndarray of bool
+        Both d_n > 0 and the state did not diverge.
+    reason : str, None or ndarray of object
+        Name of the failure reported (:data:`~softhand_env.physics.failure.REASONS`), None if none.
+    """
+
+    __slots__ = ("_flags", "_diag", "_failed", "_grasped", "_reason", "_batched")
+
+    def __init__(self, flags: np.ndarray, diag: np.ndarray, failed: np.ndarray,
+                 grasped: np.ndarray, reason: np.ndarray, batched: bool = True):
+        self._flags = flags
+        self._diag = diag
+        self._failed = failed
+        self._grasped = grasped
+        self._reason = reason
+        self._batched = batched
+
+    def _hand(self, a: np.ndarray) -> Any:
+        return a if self._batched else a[0].item()
+
+    @property
+    def hands(self) -> StepStatus:
+        """This status with the hand axis (N, ...) on every attribute, also for one hand."""
+        if self._batched:
+            return self
+        return StepStatus(self._flags, self._diag, self._failed, self._grasped, self._reason)
+
+    @property
+    def flags(self) -> Any:
+        return self._hand(self._flags)
+
+    @property
+    def substeps(self) -> Any:
+        return self._hand(self._diag[:, 2].astype(np.int64))
+
+    @property
+    def max_ch(self) -> Any:
+        return self._hand(self._diag[:, 0])
+
+    @property
+    def max_cn(self) -> Any:
+        return self._hand(self._diag[:, 1])
+
+    @property
+    def failed(self) -> Any:
+        return self._hand(self._failed)
+
+    @property
+    def grasped(self) -> Any:
+        return self._hand(self._grasped)
+
+    @property
+    def reason(self) -> Any:
+        names = _REASON_NAMES[self._reason]
+        return names if self._batched else names[0]
+
+    @property
+    def fatal(self) -> Any:
+        """True where the state left the model (NaN, blow-up, lost grasp, over-compression)."""
+        return self._hand((self._flags & kernel.FATAL_FLAGS) != 0)
+
+    @property
+    def reasons(self) -> list[str]:
+        """Names of the kernel flags set (in any hand)."""
+        return describe_flags(int(np.bitwise_or.reduce(self._flags)))
+
+    def __repr__(self) -> str:
+        return (
+            f"StepStatus(flags={self.flags!r}, substeps={self.substeps!r}, "
+            f"max_ch={self.max_ch!r}, max_cn={self.max_cn!r}, failed={self.failed!r}, "
+            f"grasped={self.grasped!r}, reason={self.reason!r})"
+        )
+
+
+@njit(cache=True)
+def _finish_step(FLAGS, Y, Y_PREV, PRM, DIAG, TIME, ch_limit, dn_limit, base_limit):
+    """After the kernel: classify the hands (:func:`softhand_env.physics.failure.classify`, with the
+    rollback of non-finite states to ``Y_PREV``) and advance TIME (N,) (s) by the substeps
+    taken (``DIAG[:, 2]``), in one compiled call. Returns (failed, grasped, reason codes)."""
+    N = Y.shape[0]
+    failed = np.empty(N, dtype=np.bool_)
+    grasped = np.empty(N, dtype=np.bool_)
+    reason = np.empty(N, dtype=np.int64)
+    classify(FLAGS, Y, Y_PREV, PRM, DIAG, ch_limit, dn_limit, base_limit, failed, grasped,
+             reason)
+    for s in range(N):
+        TIME[s] += DIAG[s, 2] * PRM[s, kernel.P_DT]
+    return failed, grasped, reason
+
+
+class HandReadouts(NamedTuple):
+    """The named read-outs of every hand at one instant (fresh arrays, leading hand axis N).
+
+    Attributes
+    ----------
+    object_pose : ndarray, shape (N, 3)
+        Object (x, y, theta) in m, m, rad.
+    object_velocity : ndarray, shape (N, 3)
+        Object (dx/dt, dy/dt, dtheta/dt) in m/s, m/s, rad/s.
+    finger_angles : ndarray, shape (N, 2)
+        Joint angles (theta_1, theta_2) in rad.
+    finger_velocities : ndarray, shape (N, 2)
+        Joint velocities in rad/s.
+    deformation : ndarray, shape (N, 4)
+        Fingertip deformations (d_n1, d_n2, d_t1, d_t2) in m.
+    setpoint : ndarray, shape (N, 2)
+        Finger-angle set-points (rad).
+    joint_torques : ndarray, shape (N, 2)
+        PID joint torques (N m) of Eq 5.42.
+    """
+
+    object_pose: np.ndarray
+    object_velocity: np.ndarray
+    finger_angles: np.ndarray
+    finger_velocities: np.ndarray
+    deformation: np.ndarray
+    setpoint: np.ndarray
+    joint_torques: np.ndarray
+
+
+class HandPhysics:
+    """States, integration, failure classification and read-outs of N hands (chapter-5 model).
+
+    Parameters
+    ----------
+    params : HandParams, optional
+        Physical and numerical parameters (SI) of every hand (default: Table 5.1).
+    num_hands : int, optional
+        N >= 1 hands with a leading hand axis on every read-out; None (default) is one hand
+        without that axis (see the module doc).
+    ch_limit : float
+        |C^H| (m) above which a state counts as diverged (default 1e-3 m).
+    dn_limit : float, optional
+        d_n (m) at or above which a fingertip counts as over-compressed (default: the
+        fingertip radius a, where the model ends).
+    base_limit : float
+        Allowed reach of a contact circle past its fingertip base before it counts as a
+        failure (1 = none; ``math.inf`` = never), see :func:`.contact.beyond_base`.
+    check_stability : bool
+        Warn (``RuntimeWarning``) if ``params.dt`` is beyond RK4's stability limit
+        (:func:`warn_if_unstable`); also on :meth:`set_params`.
+    """
+
+    def __init__(
+        self,
+        params: HandParams | None = None,
+        num_hands: int | None = None,
+        ch_limit: float = kernel.CH_LIMIT,
+        dn_limit: float | None = None,
+        base_limit: float = 1.0,
+        check_stability: bool = True,
+    ):
+        if num_hands is not None and (
+            isinstance(num_hands, bool)
+            or not isinstance(num_hands, (int, np.integer))
+            or num_hands < 1
+        ):
+            raise ValueError(f"num_hands must be None or an int >= 1 (got {num_hands!r})")
+        params = params if params is not None else HandParams()
+        if check_stability:
+            warn_if_unstable(params, stacklevel=2)
+        n = 1 if num_hands is None else int(num_hands)
+        self._batched = num_hands is not None
+        self._n = n
+        self.ch_limit = float(ch_limit)
+        self.dn_limit = float(params.a if dn_limit is None else dn_limit)
+        self.base_limit = float(base_limit)
+        self._params: list[HandParams] = [params] * n
+        self._prm = np.ascontiguousarray(np.tile(pack_params(params), (n, 1)))
+        self._y = np.tile(initial_state(params), (n, 1))
+        self._u = self._y[:, TH_1 : TH_1 + 2].copy()
+        self._time = np.zeros(n)
+        self._check_stability = bool(check_stability)
+
+    # ----------------------------------------------------------------- state management
+    @property
+    def num_hands(self) -> int:
+        """Number of hands N (1 for a one-hand physics)."""
+        return self._n
+
+    def _out(self, a: np.ndarray) -> Any:
+        """Copy of a per-hand array in the physics' hand shape (module doc)."""
+        return a.copy() if self._batched else a[0].copy()
+
+    def _hand_array(self, name: str, value: Any, tail: tuple[int, ...]) -> np.ndarray:
+        """``value`` as a float64 (N, *tail) array; ValueError naming ``name`` otherwise.
+
+        Accepts the hand shape (``tail`` for one hand, (N, *tail) for N) and (N, *tail)."""
+        a = np.asarray(value, dtype=np.float64)
+        shape = (self._n, *tail)
+        if a.shape != shape and not (not self._batched and a.shape == tail):
+            hand = shape if self._batched else tail
+            raise ValueError(f"{name} must have shape {hand} (got {np.shape(value)})")
+        total = float(a.sum())  # finite sum: every entry finite (the exact test otherwise)
+        if total - total != 0.0 and not np.all(np.isfinite(a)):
+            raise ValueError(f"{name} must be finite (got {a.tolist()})")
+        return a.reshape((self._n, *tail))
+
+    @property
+    def dt(self) -> float:
+        """RK4 substep (s) of the first hand."""
+        return self._params[0].dt
+
+    @property
+    def params(self) -> Any:
+        """Parameters: a HandParams (one hand) or a tuple of N (one per hand)."""
+        return tuple(self._params) if self._batched else self._params[0]
+
+    @property
+    def time(self) -> Any:
+        """Simulated time since each hand's last reset (s)."""
+        return self._out(self._time) if self._batched else float(self._time[0])
+
+    @property
+    def packed_params(self) -> np.ndarray:
+        """Copy of the packed parameter vectors, shape (N_PARAMS,) or (N, N_PARAMS)."""
+        return self._out(self._prm)
+
+    def reset(self, state: np.ndarray | None = None) -> None:
+        """Reset every hand to ``state`` ((20,) or (N, 20)) or to the paper's initial state.
+
+        The set-points become the finger angles (nothing commanded yet).
+        """
+        if state is None:
+            for i, p in enumerate(self._params):
+                self._y[i] = initial_state(p)
+        else:
+            self.set_state(state)
+        self._u[:] = self._y[:, TH_1 : TH_1 + 2]
+        self._time[:] = 0.0
+
+    def reset_hand(
+        self,
+        index: int,
+        state: np.ndarray,
+        setpoint: np.ndarray,
+        params: HandParams | None = None,
+    ) -> None:
+        """Start hand ``index`` afresh at ``state`` (20,) with set-points ``setpoint`` (2,) (rad);
+        ``params`` (optional) replace its parameters (packed here)."""
+        if params is not None and params is not self._params[index]:
+            self.set_params(params, index)
+        self._y[index] = state
+        self._u[index] = setpoint
+        self._time[index] = 0.0
+
+    def set_params(self, params: HandParams, index: int | None = None) -> None:
+        """Change the parameters of hand ``index`` (all hands if None); states are kept."""
+        if self._check_stability:
+            warn_if_unstable(params, stacklevel=2)
+        rows = range(self._n) if index is None else (index,)
+        prm = pack_params(params)
+        for i in rows:
+            self._params[i] = params
+            self._prm[i] = prm
+
+    def get_state(self) -> np.ndarray:
+        """Copy of the states [q (9), p (9), z (2)], shape (20,) or (N, 20)."""
+        return self._out(self._y)
+
+    def set_state(self, state: np.ndarray) -> None:
+        """Set the full states ((20,) or (N, 20)); ValueError on wrong shape or non-finite."""
+        self._y[:] = self._hand_array("state", state, (NY,))
+
+    @property
+    def setpoint(self) -> np.ndarray:
+        """Finger-angle set-points (rad) of the last step, shape (2,) or (N, 2)."""
+        return self._out(self._u)
+
+    # ------------------------------------------------------------------------- stepping
+    def step(
+        self,
+        setpoint: np.ndarray,
+        n_substeps: int,
+        strict: bool = True,
+        skip: np.ndarray | None = None,
+    ) -> StepStatus:
+        """Advance every hand ``n_substeps`` RK4 substeps holding the set-points ``setpoint``.
+
+        A hand whose state became non-finite is rolled back to its state before the step;
+        every hand is then classified (:func:`softhand_env.physics.failure.classify`).
+
+        Parameters
+        ----------
+        setpoint : array_like, shape (2,) or (N, 2)
+            Desired finger angles (theta_1^d, theta_2^d) in rad (one hand: (2,) or (1, 2)).
+        n_substeps : int
+            Number of substeps of :attr:`dt` seconds.
+        strict : bool
+            If True, raise :class:`PhysicsError` when a state diverges (NaN or
+            |C^H| > ch_limit); lost grasp and over-compression are reported in the status.
+        skip : ndarray of bool, shape (N,), optional
+            Hands left untouched this step (e.g. environments that restart instead); their
+            status reads flags 0, not failed, not grasped.
+
+        Raises
+        ------
+        ValueError
+            Non-finite set-points or a non-positive substep count.
+        PhysicsError
+            On divergence with ``strict=True``.
+        """
+        u = self._hand_array("setpoint", setpoint, (2,))
+        n = int(n_substeps)
+        if n < 1:
+            raise ValueError(f"n_substeps must be >= 1 (got {n_substeps!r})")
+        self._u[:] = u
+        y_prev = self._y.copy()
+        flags = np.zeros(self._n, dtype=np.int64)
+        if skip is not None:
+            flags[skip] = kernel.FLAG_SKIP
+        diag = np.zeros((self._n, 3))
+        kernel.advance_batch(self._y, self._u, self._prm, n, self.ch_limit, diag, flags)
+        failed, grasped, reason = _finish_step(
+            flags, self._y, y_prev, self._prm, diag, self._time, self.ch_limit, self.dn_limit,
+            self.base_limit,
+        )
+        status = StepStatus(flags, diag, failed, grasped, reason, self._batched)
+        if strict and np.any(flags & (kernel.FLAG_NONFINITE | kernel.FLAG_CONSTRAINT)):
+            raise PhysicsError(
+                f"simulation diverged at t = {float(self._time.max()):.4f} s: "
+                f"{', '.join(status.reasons)}",
+                int(np.bitwise_or.reduce(flags)),
+            )
+        return status
+
+    # ------------------------------------------------------------------------ read-outs
+    @property
+    def object_pose(self) -> np.ndarray:
+        """Object (x, y, theta) in m, m, rad, shape (3,) or (N, 3)."""
+        return self._out(self._y[:, X_OBJ : X_OBJ + 3])
+
+    @property
+    def object_velocity(self) -> np.ndarray:
+        """Object (dx/dt, dy/dt, dtheta/dt) in m/s, m/s, rad/s, shape (3,) or (N, 3)."""
+        return self._out(self._y[:, NQ + X_OBJ : NQ + X_OBJ + 3])
+
+    @property
+    def finger_angles(self) -> np.ndarray:
+        """Joint angles (theta_1, theta_2) in rad, shape (2,) or (N, 2)."""
+        return self._out(self._y[:, TH_1 : TH_1 + 2])
+
+    @property
+    def finger_velocities(self) -> np.ndarray:
+        """Joint velocities in rad/s, shape (2,) or (N, 2)."""
+        return self._out(self._y[:, NQ + TH_1 : NQ + TH_1 + 2])
+
+    @property
+    def deformation(self) -> np.ndarray:
+        """Fingertip deformations (d_n1, d_n2, d_t1, d_t2) in m, shape (4,) or (N, 4)."""
+        return self._out(self._y[:, DN_1 : DT_1 + 2])
+
+    def readouts(self) -> HandReadouts:
+        """Every named read-out of every hand at once, with the hand axis (N, ...) also for a
+        one-hand physics (one copy of the states; what the environments read per step)."""
+        y = self._y.copy()
+        tau = np.empty((self._n, 2))
+        pid_torques_batch(self._y, self._u, self._prm, tau)
+        return HandReadouts(
+            y[:, X_OBJ : X_OBJ + 3],
+            y[:, NQ + X_OBJ : NQ + X_OBJ + 3],
+            y[:, TH_1 : TH_1 + 2],
+            y[:, NQ + TH_1 : NQ + TH_1 + 2],
+            y[:, DN_1 : DT_1 + 2],
+            self._u.copy(),
+            tau,
+        )
+
+    @property
+    def constraint_error(self) -> np.ndarray:
+        """max |C^H| (m) and max |C^N| (m/s) over the two fingers at the current states,
+        shape (2,) or (N, 2)."""
+        res = np.empty(4)
+        out = np.empty((self._n, 2))
+        for i in range(self._n):
+            constraint_residuals(self._y[i], self._prm[i], res)
+            out[i] = (max(abs(res[0]), abs(res[1])), max(abs(res[2]), abs(res[3])))
+        return out if self._batched else out[0]
+
+    @property
+    def joint_torques(self) -> np.ndarray:
+        """PID joint torques (N m) of Eq 5.42 for the current set-points, shape (2,) or (N, 2)."""
+        tau = np.empty((self._n, 2))
+        pid_torques_batch(self._y, self._u, self._prm, tau)
+        return tau if self._batched else tau[0]
+
+    def diagnostics(self, setpoint: np.ndarray | None = None) -> dict[str, np.ndarray]:
+        """Constraint residuals, PID torques and constraint forces of the first hand.
+
+        Returns a dict with ``C_H`` (m, (2,)), ``C_N`` (m/s, (2,)), ``torque`` (N m, (2,)) for
+        ``setpoint`` (default: the last one) and ``lambda`` (N, (4,): normal 1, 2, tangential
+        1, 2).
+        """
+        u = self._u[0] if setpoint is None else np.asarray(setpoint, dtype=np.float64)
+        dy = np.empty(NY)
+        diag = np.empty(N_DIAG)
+        csm_rhs(self._y[0], u, self._prm[0], dy, diag)
+        return {
+            "C_H": diag[0:2].copy(),
+            "C_N": diag[2:4].copy(),
+            "torque": diag[4:6].copy(),
+            "lambda": diag[6:10].copy(),
+        }
+
+    def pid_torques(self, setpoint: np.ndarray | None = None) -> np.ndarray:
+        """PID joint torques (N m) of Eq 5.42 of the first hand, shape (2,)."""
+        return self.diagnostics(setpoint)["torque"]
+
+
+__all__ = [
+    "HandPhysics",
+    "HandReadouts",
+    "PhysicsError",
+    "StepStatus",
+    "check_rk4_stability",
+    "describe_flags",
+    "rk4_stability_margins",
+    "warn_if_unstable",
+]

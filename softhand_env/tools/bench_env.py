@@ -1,0 +1,134 @@
+"""Throughput of the soft-hand environments: ``python -m softhand_env.tools.bench_env``.
+
+Prints environment steps per second (control steps of ``control_dt``, default 20 ms = 200 RK4
+substeps) with random actions for
+
+* the single environment (``gym.make``, with its wrappers; reset on episode end),
+* ``gym.make_vec`` with ``vectorization_mode="sync"`` and ``"async"`` (one process per env;
+  N above ``--async-max``, default 64, is skipped: 512 worker processes are not sensible),
+* the native vector environment (``vectorization_mode="vector_entry_point"``, numba threads),
+
+at N = 8, 64, 512 by default, best of ``--repeats`` timed runs (the figures are noisy on a
+shared machine). A kernel-only line gives the ceiling: RK4 substeps per second of
+:func:`softhand_env.physics.kernel.advance`. Timing is reported, never asserted.
+"""
+
+from __future__ import annotations
+
+import argparse
+import time
+from collections.abc import Callable
+from typing import Any
+
+import numpy as np
+
+import softhand_env  # noqa: F401  (registers the environments)
+
+
+def _best(run: Callable[[], float], repeats: int) -> float:
+    """Best (largest) rate of ``repeats`` calls of ``run`` returning a rate."""
+    return max(run() for _ in range(repeats))
+
+
+def bench_kernel(steps: int, repeats: int) -> float:
+    """RK4 substeps per second of one system (the physics ceiling)."""
+    from softhand_env.physics import kernel
+    from softhand_env.physics.model import initial_state, pack_params
+    from softhand_env.physics.params import load_hand_params
+
+    params = load_hand_params("paper_ch5")
+    y, prm = initial_state(params), pack_params(params)
+    u, diag = np.radians([6.0, 6.0]), np.zeros(2)
+    kernel.advance(y, u, prm, 200, kernel.CH_LIMIT, diag)
+
+    def run() -> float:
+        t0 = time.perf_counter()
+        for _ in range(steps):
+            kernel.advance(y, u, prm, 200, kernel.CH_LIMIT, diag)
+        return steps * 200 / (time.perf_counter() - t0)
+
+    return _best(run, repeats)
+
+
+def bench_single(env_id: str, steps: int, repeats: int, **kwargs) -> float:
+    """Env steps per second of ``gym.make(env_id)`` with random actions."""
+    import gymnasium as gym
+
+    env = gym.make(env_id, **kwargs)
+    env.reset(seed=0)
+    actions = np.random.default_rng(0).uniform(-1, 1, (steps, 2)).astype(np.float32)
+    base: Any = env.unwrapped  # a SoftHandEnv
+    if not base.config.actions.normalize:
+        raise ValueError("the benchmark uses normalised actions")
+
+    def run() -> float:
+        env.reset(seed=0)
+        t0 = time.perf_counter()
+        for a in actions:
+            _, _, terminated, truncated, _ = env.step(a)
+            if terminated or truncated:
+                env.reset()
+        return steps / (time.perf_counter() - t0)
+
+    rate = _best(run, repeats)
+    env.close()
+    return rate
+
+
+def bench_vector(env_id: str, mode: str, n: int, steps: int, repeats: int, **kwargs) -> float:
+    """Env steps per second (N x vector steps) of ``gym.make_vec`` in ``mode``."""
+    import gymnasium as gym
+
+    envs = gym.make_vec(env_id, num_envs=n, vectorization_mode=mode, **kwargs)
+    envs.reset(seed=0)
+    actions = np.random.default_rng(0).uniform(-1, 1, (steps, n, 2)).astype(np.float32)
+    envs.step(actions[0])  # warm-up (thread pool, worker processes)
+
+    def run() -> float:
+        t0 = time.perf_counter()
+        for a in actions:
+            envs.step(a)
+        return steps * n / (time.perf_counter() - t0)
+
+    rate = _best(run, repeats)
+    envs.close()
+    return rate
+
+
+def main(argv: list[str] | None = None) -> None:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    parser.add_argument("--id", default="SoftHandReorient-v0", help="environment id")
+    parser.add_argument("--sizes", type=int, nargs="+", default=[8, 64, 512], help="values of N")
+    parser.add_argument("--env-steps", type=int, default=4096,
+                        help="env steps per timed run (vector: divided by N, at least 4 steps)")
+    parser.add_argument("--repeats", type=int, default=3, help="timed runs; the best is shown")
+    parser.add_argument("--async-max", type=int, default=64,
+                        help="largest N for async mode (one worker process per environment)")
+    args = parser.parse_args(argv)
+
+    import numba
+
+    print(f"softhand_env {softhand_env.__version__}: {args.id}, random actions, "
+          f"best of {args.repeats}; numba threads: {numba.get_num_threads()}")
+    rate = bench_kernel(max(args.env_steps // 4, 100), args.repeats)
+    print(f"{'kernel (RK4 substeps/s)':<34}{rate:>14,.0f}   ceiling {rate / 200:,.0f} env steps/s")
+    print(f"{'mode':<24}{'N':>6}{'env steps/s':>18}{'us/env step':>14}")
+
+    def show(mode: str, n: int, rate: float | None, note: str = "") -> None:
+        if rate is None:
+            print(f"{mode:<24}{n:>6}{'skipped':>18}   {note}")
+        else:
+            print(f"{mode:<24}{n:>6}{rate:>18,.0f}{1e6 / rate:>14.1f}", flush=True)
+
+    show("single (gym.make)", 1, bench_single(args.id, args.env_steps, args.repeats))
+    for mode in ("sync", "async", "vector_entry_point"):
+        for n in args.sizes:
+            if mode == "async" and n > args.async_max:
+                show(mode, n, None, f"N > --async-max={args.async_max}")
+                continue
+            steps = max(args.env_steps // n, 4)
+            show(mode, n, bench_vector(args.id, mode, n, steps, args.repeats))
+
+
+if __name__ == "__main__":
+    main()
