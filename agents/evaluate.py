@@ -217,7 +217,8 @@ def write_gif(path: Path, env_id: str, kwargs: dict[str, Any], wrapper: Any, pol
     shown, duration = gif_frames(frames, env.unwrapped.dt,  # type: ignore[attr-defined]
                                  task_targets(env_id), ep["goal"],
                                  ep["pose"], fps)
-    imageio.mimsave(path, shown, duration=duration, loop=0)
+    images: list[Any] = shown
+    imageio.mimsave(path, images, duration=duration, loop=0)
 
 
 def main(argv: Sequence[str] | None = None) -> dict[str, float]:
