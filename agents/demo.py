@@ -20,7 +20,9 @@ import time
 from collections.abc import Sequence
 from pathlib import Path
 
-from agents.common import ERROR_KEYS, resolve_model, run_cli
+from agents.cli import run_cli
+from agents.loading import resolve_model
+from agents.metrics import ERROR_KEYS
 
 GOAL_ENVS = ("SoftHandReorient-v0", "SoftHandTranslate-v0", "SoftHandPose-v0")
 MODELS = Path(__file__).resolve().parent / "models"

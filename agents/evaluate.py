@@ -32,18 +32,10 @@ from typing import Any
 import numpy as np
 import yaml
 
-from agents.common import (
-    ERROR_KEYS,
-    ModelPolicy,
-    UserError,
-    final_errors,
-    goal_seeds,
-    make_env,
-    run_cli,
-    success_kwargs,
-    summarize,
-    task_targets,
-)
+from agents.cli import UserError, run_cli
+from agents.env_factory import goal_seeds, make_env, task_targets
+from agents.loading import ModelPolicy
+from agents.metrics import ERROR_KEYS, final_errors, success_kwargs, summarize
 from softhand_env.envs.signature import SIGNATURE_FIELDS
 
 SCRIPTED = ("paper", "handling", "model-based", "loop-plan")

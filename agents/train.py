@@ -36,30 +36,19 @@ from stable_baselines3.common.callbacks import CheckpointCallback, EvalCallback
 from stable_baselines3.common.utils import set_random_seed
 from stable_baselines3.common.vec_env import VecNormalize
 
-from agents.common import (
+from agents.cli import UserError, parse_kv, run_cli
+from agents.env_factory import check_env_id, goal_seeds, make_env, make_vec_env, task_targets
+from agents.hyperparams import (
     ALGOS,
-    CONFIG_FILE,
-    MODEL_FILE,
-    VECNORM_FILE,
-    UserError,
     algo_class,
     algo_kwargs,
-    check_env_id,
     config_path,
-    error_score,
-    final_errors,
-    goal_seeds,
     load_hyperparams,
-    make_env,
-    make_vec_env,
     normalize_kwargs,
-    parse_kv,
-    run_cli,
-    success_kwargs,
-    summarize,
-    task_targets,
     versions,
 )
+from agents.loading import CONFIG_FILE, MODEL_FILE, VECNORM_FILE
+from agents.metrics import error_score, final_errors, success_kwargs, summarize
 from softhand_env.envs.signature import env_signature
 
 

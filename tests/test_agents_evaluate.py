@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 import yaml
 
-from agents import common, evaluate
+from agents import cli, env_factory, evaluate, loading, metrics
 
 ROOT = Path(__file__).resolve().parent.parent
 MODELS = ROOT / "agents" / "models"
@@ -33,11 +33,11 @@ def evaluate_model(path: Path, n: int, seed: int = 10000):
     import torch
 
     torch.set_num_threads(1)  # small MLPs: one thread is fastest (and the CLI default)
-    policy = common.ModelPolicy(path)
-    kwargs = {**policy.env_kwargs, **common.success_kwargs(policy.env_id)}
-    env = common.make_env(policy.env_id, kwargs, policy.env_wrapper)
-    targets = common.task_targets(policy.env_id)
-    return evaluate.evaluate(env, policy, common.goal_seeds(seed, n), targets)
+    policy = loading.ModelPolicy(path)
+    kwargs = {**policy.env_kwargs, **metrics.success_kwargs(policy.env_id)}
+    env = env_factory.make_env(policy.env_id, kwargs, policy.env_wrapper)
+    targets = env_factory.task_targets(policy.env_id)
+    return evaluate.evaluate(env, policy, env_factory.goal_seeds(seed, n), targets)
 
 
 @pytest.mark.parametrize("env_id", sorted(SHIPPED))
@@ -91,7 +91,7 @@ def test_paper_sequence_on_the_no_task_env(tmp_path):
 
 def _expect_error(capsys, argv, fragment):
     with pytest.raises(SystemExit) as exc:
-        common.run_cli(evaluate.main, argv)
+        cli.run_cli(evaluate.main, argv)
     assert exc.value.code == 2
     err = capsys.readouterr().err
     assert err.startswith("error: ") and err.count("\n") == 1 and fragment in err, err
@@ -136,9 +136,9 @@ def _shipped_copy(tmp_path, env_id="SoftHandTranslate-v0"):
 def test_shipped_models_carry_the_signature_of_their_env():
     for cfg_path in MODELS.glob("*/config.yml"):
         config = yaml.safe_load(cfg_path.read_text())
-        policy = common.ModelPolicy(cfg_path.parent)
+        policy = loading.ModelPolicy(cfg_path.parent)
         hp = config["hyperparams"]
-        policy.check_env(common.make_env(config["env_id"], hp["env_kwargs"],
+        policy.check_env(env_factory.make_env(config["env_id"], hp["env_kwargs"],
                                          hp.get("env_wrapper")))
 
 
@@ -176,7 +176,7 @@ def test_model_without_signature_is_shape_checked_with_a_warning(capsys, tmp_pat
     config["hyperparams"]["env_kwargs"]["history_len"] = 2  # the shape check still catches it
     (run / "config.yml").write_text(yaml.safe_dump(config, sort_keys=False))
     with pytest.raises(SystemExit) as exc:
-        common.run_cli(evaluate.main, ["--model", str(run), "--n-episodes", "1", "--no-plots"])
+        cli.run_cli(evaluate.main, ["--model", str(run), "--n-episodes", "1", "--no-plots"])
     assert exc.value.code == 2
     warning, error = capsys.readouterr().err.splitlines()
     assert warning.startswith("warning: ") and "no env_signature" in warning

@@ -1,0 +1,170 @@
+"""Hyper-parameter files (RL-Zoo style YAML keyed by env id) and algorithm keywords.
+
+:func:`load_hyperparams` reads ``softhand_env/configs/agents/<algo>.yml`` (a mapping keyed by
+env id; YAML anchors allowed) and :func:`algo_kwargs` turns an entry into algorithm keywords
+(``lin_<v>`` schedules, ``activation_fn`` names).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+import yaml
+
+from agents.cli import UserError
+
+#: Directory of the hyper-parameter files (``<algo>.yml``).
+CONFIG_DIR = Path(__file__).resolve().parent.parent / "softhand_env" / "configs" / "agents"
+
+#: Algorithm name -> (module, class). Imported lazily (torch is slow to import).
+ALGOS: dict[str, tuple[str, str]] = {
+    "ppo": ("stable_baselines3", "PPO"),
+    "sac": ("stable_baselines3", "SAC"),
+    "td3": ("stable_baselines3", "TD3"),
+    "tqc": ("sb3_contrib", "TQC"),
+    "ppo_lstm": ("sb3_contrib", "RecurrentPPO"),
+}
+
+#: Keys of a hyper-parameter entry that train.py consumes (everything else goes to the algorithm).
+SPECIAL_KEYS = (
+    "n_envs", "n_timesteps", "policy", "normalize", "env_kwargs", "env_wrapper", "vec_env",
+)
+#: Keys every entry must have.
+REQUIRED_KEYS = ("n_timesteps", "policy")
+#: ``vec_env`` values.
+
+
+# ---------------------------------------------------------------------------- hyper-params
+def config_path(algo: str, conf_file: str | None) -> Path:
+    """The hyper-parameter file: ``conf_file`` or ``configs/agents/<algo>.yml``."""
+    if conf_file is not None:
+        return Path(conf_file)
+    for ext in ("yml", "yaml"):
+        path = CONFIG_DIR / f"{algo}.{ext}"
+        if path.exists():
+            return path
+    return CONFIG_DIR / f"{algo}.yml"
+
+
+def load_hyperparams(algo: str, env_id: str, conf_file: str | None = None) -> dict[str, Any]:
+    """The entry of ``env_id`` in the hyper-parameter file, validated (:class:`UserError`)."""
+    if algo not in ALGOS:
+        raise UserError(f"unknown algo {algo!r}; choose one of {', '.join(ALGOS)}")
+    path = config_path(algo, conf_file)
+    if not path.is_file():
+        raise UserError(f"hyper-parameter file {path} not found")
+    try:
+        data = yaml.safe_load(path.read_text())
+    except yaml.YAMLError as exc:
+        raise UserError(f"{path}: invalid YAML: {exc}") from None
+    if not isinstance(data, dict):
+        raise UserError(f"{path}: expected a mapping keyed by env id")
+    if env_id not in data:
+        keys = ", ".join(k for k in data if not str(k).startswith("."))
+        raise UserError(f"{path} has no entry for {env_id!r} (entries: {keys})")
+    entry = data[env_id]
+    if not isinstance(entry, dict):
+        raise UserError(f"{path}: entry {env_id!r} must be a mapping")
+    missing = [k for k in REQUIRED_KEYS if k not in entry]
+    if missing:
+        raise UserError(f"{path}: entry {env_id!r} lacks required key(s) {', '.join(missing)}")
+    hp = dict(entry)
+    hp.setdefault("n_envs", 1)
+    hp.setdefault("normalize", False)
+    hp.setdefault("env_kwargs", {})
+    hp.setdefault("vec_env", "dummy")
+    if not isinstance(hp["env_kwargs"], dict):
+        raise UserError(f"{path}: env_kwargs of {env_id!r} must be a mapping")
+    return hp
+
+
+def linear_schedule(initial: float) -> Callable[[float], float]:
+    """``progress_remaining * initial`` (RL Zoo's ``lin_<value>``)."""
+
+    def schedule(progress_remaining: float) -> float:
+        return progress_remaining * initial
+
+    return schedule
+
+
+def _schedule(key: str, value: Any) -> Any:
+    if isinstance(value, str) and value.startswith("lin_"):
+        try:
+            return linear_schedule(float(value[4:]))
+        except ValueError:
+            raise UserError(f"{key}: bad schedule {value!r} (expected lin_<number>)") from None
+    return value
+
+
+def _policy_kwargs(value: dict[str, Any]) -> dict[str, Any]:
+    import torch.nn as nn
+
+    kwargs = dict(value)
+    name = kwargs.get("activation_fn")
+    if isinstance(name, str):
+        table = {"tanh": nn.Tanh, "relu": nn.ReLU, "elu": nn.ELU, "leaky_relu": nn.LeakyReLU}
+        if name not in table:
+            raise UserError(f"policy_kwargs.activation_fn must be one of {sorted(table)}")
+        kwargs["activation_fn"] = table[name]
+    return kwargs
+
+
+def algo_class(algo: str) -> type:
+    """The SB3 algorithm class of ``algo``."""
+    import importlib
+
+    module, name = ALGOS[algo]
+    return getattr(importlib.import_module(module), name)
+
+
+def algo_kwargs(algo: str, hp: dict[str, Any]) -> dict[str, Any]:
+    """Algorithm constructor keywords from a hyper-parameter entry (validated)."""
+    import inspect
+
+    cls = algo_class(algo)
+    allowed = set(inspect.signature(cls.__init__).parameters) - {"self", "env", "policy"}
+    kwargs: dict[str, Any] = {}
+    for key, value in hp.items():
+        if key in SPECIAL_KEYS:
+            continue
+        if key not in allowed:
+            raise UserError(f"{cls.__name__} has no hyper-parameter {key!r}")
+        if key == "policy_kwargs":
+            if not isinstance(value, dict):
+                raise UserError("policy_kwargs must be a mapping")
+            value = _policy_kwargs(value)
+        elif key == "train_freq" and isinstance(value, list):
+            value = tuple(value)
+        kwargs[key] = _schedule(key, value)
+    return kwargs
+
+
+def normalize_kwargs(value: Any) -> dict[str, Any] | None:
+    """VecNormalize keywords from ``normalize`` (false, true or a mapping), None if off."""
+    if value is False or value is None:
+        return None
+    if value is True:
+        return {}
+    if isinstance(value, dict):
+        return dict(value)
+    raise UserError(f"normalize must be true, false or a mapping (got {value!r})")
+
+
+def versions() -> dict[str, str]:
+    """Versions of the packages a run depends on."""
+    import platform
+    from importlib.metadata import PackageNotFoundError, version
+
+    out = {"python": platform.python_version()}
+    for pkg in ("softhand-env", "stable-baselines3", "sb3-contrib", "torch", "gymnasium", "numpy"):
+        try:
+            out[pkg] = version(pkg)
+        except PackageNotFoundError:
+            if pkg == "softhand-env":
+                import softhand_env
+
+                out[pkg] = softhand_env.__version__
+    return out
+
