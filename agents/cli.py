@@ -7,6 +7,7 @@ unreadable model); :func:`run_cli` prints it as ONE line on stderr and exits wit
 
 from __future__ import annotations
 
+import argparse
 import sys
 from collections.abc import Callable, Sequence
 from typing import Any
@@ -41,3 +42,21 @@ def parse_kv(items: Sequence[str] | None, what: str = "--env-kwargs") -> dict[st
             raise UserError(f"{what}: cannot parse the value of {item!r}") from None
     return out
 
+
+
+#: Largest seed numpy accepts.
+SEED_MAX = 2**32 - 1
+
+
+class ArgumentParser(argparse.ArgumentParser):
+    """argparse whose usage errors are :class:`UserError` (one line, exit code 2 in
+    :func:`run_cli`) instead of a usage block."""
+
+    def error(self, message: str):  # type: ignore[override]
+        raise UserError(f"{self.prog}: {message}")
+
+
+def check_range(name: str, value: float, low: float, high: float) -> None:
+    """:class:`UserError` naming ``name`` unless ``low <= value <= high``."""
+    if not low <= value <= high:
+        raise UserError(f"{name} must be in [{low}, {high}] (got {value})")

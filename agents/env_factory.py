@@ -44,11 +44,19 @@ def task_targets(env_id: str) -> tuple[str, ...]:
     return TASK_TARGETS[ENV_IDS[env_id]]
 
 
+#: Modules an ``env_wrapper`` entry may name a class from: the project's own packages and
+#: Gymnasium's wrappers. Anything else is refused before it is imported.
+WRAPPER_MODULES = ("agents", "softhand_env", "gymnasium.wrappers")
+
+
 def wrapper_list(spec: Any) -> list[tuple[type, dict[str, Any]]]:
-    """Wrapper classes and keywords from an ``env_wrapper`` entry (RL-Zoo syntax).
+    """Wrapper classes and keywords from an ``env_wrapper`` entry (RL Zoo syntax).
 
     ``spec`` is None, a dotted class path, or a list of dotted paths and one-key mappings
-    ``{path: {keyword: value}}``, applied in order (innermost first).
+    ``{path: {keyword: value}}``, applied in order (innermost first). A path must name a
+    ``gymnasium.Wrapper`` subclass in :data:`WRAPPER_MODULES` (checked before any import, then
+    on the imported object); anything else raises :class:`UserError`, so a run config from
+    elsewhere cannot make the loader import or call arbitrary code.
     """
     import importlib
 
@@ -59,6 +67,8 @@ def wrapper_list(spec: Any) -> list[tuple[type, dict[str, Any]]]:
     for item in items:
         if isinstance(item, dict) and len(item) == 1:
             path, kwargs = next(iter(item.items()))
+            if kwargs is not None and not isinstance(kwargs, dict):
+                raise UserError(f"env_wrapper {path!r}: keywords must be a mapping")
             kwargs = dict(kwargs or {})
         elif isinstance(item, str):
             path, kwargs = item, {}
@@ -66,10 +76,16 @@ def wrapper_list(spec: Any) -> list[tuple[type, dict[str, Any]]]:
             raise UserError(f"env_wrapper items must be 'module.Class' or {{path: kwargs}} "
                             f"(got {item!r})")
         module, _, name = str(path).rpartition(".")
+        allowed = any(module == m or module.startswith(m + ".") for m in WRAPPER_MODULES)
+        if not allowed or not name.isidentifier() or name.startswith("_"):
+            raise UserError(f"env_wrapper {path!r} refused: only wrapper classes from "
+                            f"{', '.join(WRAPPER_MODULES)} are allowed")
         try:
             cls = getattr(importlib.import_module(module), name)
         except (ImportError, AttributeError, ValueError):
             raise UserError(f"env_wrapper: cannot import {path!r}") from None
+        if not (isinstance(cls, type) and issubclass(cls, gym.Wrapper)):
+            raise UserError(f"env_wrapper {path!r} refused: not a gymnasium.Wrapper class")
         out.append((cls, kwargs))
     return out
 

@@ -47,7 +47,9 @@ def parse_args(argv: Sequence[str] | None = None) -> argparse.Namespace:
         prog="python -m agents.evaluate", description=__doc__.split("\n\n")[0]
     )
     who = p.add_mutually_exclusive_group(required=True)
-    who.add_argument("--model", help="saved model: directory with model.zip, or a .zip")
+    who.add_argument("--model", help="saved model: the env id of a shipped model, a run "
+                     "directory (RL Zoo layout: <env id>.zip, <env id>/config.yml) or a .zip "
+                     "in it")
     who.add_argument("--policy", choices=SCRIPTED, help="scripted policy (agents.scripted)")
     p.add_argument("--env", default=None,
                    help="env id (model: taken from its config; paper/handling: SoftHand-v0)")
@@ -61,6 +63,9 @@ def parse_args(argv: Sequence[str] | None = None) -> argparse.Namespace:
     p.add_argument("--gif-size", type=int, default=240, help="GIF frame size (px)")
     p.add_argument("--ignore-signature", nargs="+", default=[], metavar="FIELD",
                    help="model: env-signature fields not to check (e.g. version)")
+    p.add_argument("--trust-model", action="store_true",
+                   help="model: also load what only unpickling can read (zip entries that cannot "
+                        "be rebuilt, vecnormalize.pkl without .npz): runs code from the files")
     p.add_argument("--device", default="cpu")
     p.add_argument("--torch-threads", type=int, default=1)
     return p.parse_args(argv)
@@ -70,7 +75,7 @@ def parse_args(argv: Sequence[str] | None = None) -> argparse.Namespace:
 def build(args: argparse.Namespace) -> tuple[Any, str, dict[str, Any], Any, str]:
     """Policy, env id, ``gym.make`` keywords, env wrappers and a short name for the output."""
     if args.model is not None:
-        policy = ModelPolicy(args.model, device=args.device)
+        policy = ModelPolicy(args.model, device=args.device, trust_model=args.trust_model)
         if args.env is not None and args.env != policy.env_id:
             raise UserError(f"the model was trained on {policy.env_id}, not {args.env}")
         env_id, kwargs, wrapper = policy.env_id, dict(policy.env_kwargs), policy.env_wrapper

@@ -1,22 +1,26 @@
-"""Hyper-parameter files (RL-Zoo style YAML keyed by env id) and algorithm keywords.
+"""Hyper-parameter files (RL Zoo's dialect, keyed by env id) and algorithm keywords.
 
-:func:`load_hyperparams` reads ``softhand_env/configs/agents/<algo>.yml`` (a mapping keyed by
-env id; YAML anchors allowed) and :func:`algo_kwargs` turns an entry into algorithm keywords
-(``lin_<v>`` schedules, ``activation_fn`` names).
+:func:`load_hyperparams` reads ``softhand_env/configs/agents/<algo>.yml`` (installed with the
+package; a mapping keyed by env id, YAML anchors allowed). The files are written in RL Zoo's
+dialect, so ``python -m rl_zoo3.train --gym-packages softhand_env --conf-file <file>`` reads
+them unchanged: ``policy_kwargs`` as a ``"dict(...)"`` string (read here without ``eval``,
+:mod:`agents.zoo_dialect`), ``lin_<v>`` schedules (RL Zoo's own ``linear_schedule``).
+:func:`algo_kwargs` turns an entry into algorithm keywords.
 """
 
 from __future__ import annotations
 
-from collections.abc import Callable
+import importlib.util
 from pathlib import Path
 from typing import Any
 
 import yaml
 
 from agents.cli import UserError
+from agents.zoo_dialect import normalize_from, policy_kwargs_from
 
 #: Directory of the hyper-parameter files (``<algo>.yml``).
-CONFIG_DIR = Path(__file__).resolve().parent.parent / "softhand_env" / "configs" / "agents"
+CONFIG_DIR = Path(importlib.util.find_spec("softhand_env").origin).parent / "configs" / "agents"
 
 #: Algorithm name -> (module, class). Imported lazily (torch is slow to import).
 ALGOS: dict[str, tuple[str, str]] = {
@@ -28,12 +32,11 @@ ALGOS: dict[str, tuple[str, str]] = {
 }
 
 #: Keys of a hyper-parameter entry that train.py consumes (everything else goes to the algorithm).
-SPECIAL_KEYS = (
-    "n_envs", "n_timesteps", "policy", "normalize", "env_kwargs", "env_wrapper", "vec_env",
-)
+SPECIAL_KEYS = ("n_envs", "n_timesteps", "policy", "normalize", "env_kwargs", "env_wrapper")
+#: Keys whose value may be a ``lin_<v>`` schedule (as in RL Zoo).
+SCHEDULE_KEYS = ("learning_rate", "clip_range", "clip_range_vf")
 #: Keys every entry must have.
 REQUIRED_KEYS = ("n_timesteps", "policy")
-#: ``vec_env`` values.
 
 
 # ---------------------------------------------------------------------------- hyper-params
@@ -74,41 +77,24 @@ def load_hyperparams(algo: str, env_id: str, conf_file: str | None = None) -> di
     hp.setdefault("n_envs", 1)
     hp.setdefault("normalize", False)
     hp.setdefault("env_kwargs", {})
-    hp.setdefault("vec_env", "dummy")
     if not isinstance(hp["env_kwargs"], dict):
         raise UserError(f"{path}: env_kwargs of {env_id!r} must be a mapping")
     return hp
 
 
-def linear_schedule(initial: float) -> Callable[[float], float]:
-    """``progress_remaining * initial`` (RL Zoo's ``lin_<value>``)."""
-
-    def schedule(progress_remaining: float) -> float:
-        return progress_remaining * initial
-
-    return schedule
-
-
 def _schedule(key: str, value: Any) -> Any:
-    if isinstance(value, str) and value.startswith("lin_"):
+    """``lin_<v>`` -> RL Zoo's linear schedule from v to 0 (``rl_zoo3.utils.linear_schedule``)."""
+    if isinstance(value, str):
+        from rl_zoo3.utils import linear_schedule
+
+        kind, _, initial = value.partition("_")
         try:
-            return linear_schedule(float(value[4:]))
+            if kind != "lin":
+                raise ValueError
+            return linear_schedule(float(initial))
         except ValueError:
-            raise UserError(f"{key}: bad schedule {value!r} (expected lin_<number>)") from None
+            raise UserError(f"{key}: bad value {value!r} (a number or lin_<number>)") from None
     return value
-
-
-def _policy_kwargs(value: dict[str, Any]) -> dict[str, Any]:
-    import torch.nn as nn
-
-    kwargs = dict(value)
-    name = kwargs.get("activation_fn")
-    if isinstance(name, str):
-        table = {"tanh": nn.Tanh, "relu": nn.ReLU, "elu": nn.ELU, "leaky_relu": nn.LeakyReLU}
-        if name not in table:
-            raise UserError(f"policy_kwargs.activation_fn must be one of {sorted(table)}")
-        kwargs["activation_fn"] = table[name]
-    return kwargs
 
 
 def algo_class(algo: str) -> type:
@@ -132,24 +118,24 @@ def algo_kwargs(algo: str, hp: dict[str, Any]) -> dict[str, Any]:
         if key not in allowed:
             raise UserError(f"{cls.__name__} has no hyper-parameter {key!r}")
         if key == "policy_kwargs":
-            if not isinstance(value, dict):
-                raise UserError("policy_kwargs must be a mapping")
-            value = _policy_kwargs(value)
+            try:
+                value = policy_kwargs_from(value)
+            except (TypeError, ValueError) as exc:
+                raise UserError(f"policy_kwargs: {exc}") from None
         elif key == "train_freq" and isinstance(value, list):
             value = tuple(value)
-        kwargs[key] = _schedule(key, value)
+        elif key in SCHEDULE_KEYS:
+            value = _schedule(key, value)
+        kwargs[key] = value
     return kwargs
 
 
 def normalize_kwargs(value: Any) -> dict[str, Any] | None:
     """VecNormalize keywords from ``normalize`` (false, true or a mapping), None if off."""
-    if value is False or value is None:
-        return None
-    if value is True:
-        return {}
-    if isinstance(value, dict):
-        return dict(value)
-    raise UserError(f"normalize must be true, false or a mapping (got {value!r})")
+    try:
+        return normalize_from(value)
+    except (TypeError, ValueError) as exc:
+        raise UserError(str(exc)) from None
 
 
 def versions() -> dict[str, str]:

@@ -12,6 +12,7 @@ import pytest
 import yaml
 
 from agents import cli, env_factory, hyperparams, loading, train
+from agents.zoo_dialect import zoo_yaml_load
 
 ROOT = Path(__file__).resolve().parent.parent
 ENV = {**os.environ, "PYTHONPATH": str(ROOT), "SDL_VIDEODRIVER": "dummy", "MPLBACKEND": "Agg"}
@@ -35,15 +36,28 @@ def test_training_cli_smoke_run_writes_model_stats_config_and_tensorboard(tmp_pa
     )
     assert proc.returncode == 0, proc.stderr[-2000:]
     run = tmp_path / "ppo" / "SoftHandTranslate-v0_1"
-    for name in ("model.zip", "vecnormalize.pkl", "config.yml", "evaluations.npz",
-                 "best/model.zip", "best/vecnormalize.pkl"):
+    env_id = "SoftHandTranslate-v0"
+    # RL Zoo's run layout, plus the statistics as plain arrays
+    for name in (f"{env_id}.zip", f"{env_id}/vecnormalize.pkl", f"{env_id}/vecnormalize.npz",
+                 f"{env_id}/config.yml", f"{env_id}/args.yml", "evaluations.npz",
+                 "best_model.zip", "best_model_vecnormalize.npz", "rl_model_128_steps.zip",
+                 "rl_model_vecnormalize_128_steps.npz", "rl_model_vecnormalize_128_steps.pkl"):
         assert (run / name).is_file(), name
-    assert list((run / "checkpoints").glob("model_*_steps.zip"))
     assert list((run / "tb").rglob("events.out.tfevents.*"))
-    config = yaml.safe_load((run / "config.yml").read_text())
+    text = (run / env_id / "config.yml").read_text()
+    assert text.startswith("!!python/object/apply:collections.OrderedDict")  # as the zoo's
+    hp = zoo_yaml_load(text)
+    config = hp.pop("softhand")
     assert config["env_id"] == "SoftHandTranslate-v0" and config["seed"] == 3
     assert config["total_timesteps"] >= 256 and config["wall_time_s"] > 0
-    hp = config["hyperparams"]
+    # the sha256 of every model file of the run
+    assert set(config["sha256"]) == {
+        f"{env_id}.zip", f"{env_id}/vecnormalize.npz", f"{env_id}/vecnormalize.pkl",
+        f"{env_id}/args.yml", "best_model.zip", "best_model_vecnormalize.npz",
+        "best_model_vecnormalize.pkl", *(f"rl_model_{n}_steps.zip" for n in (128, 256)),
+        *(f"rl_model_vecnormalize_{n}_steps.{e}" for n in (128, 256) for e in ("npz", "pkl"))}
+    args = zoo_yaml_load((run / env_id / "args.yml").read_text())
+    assert args["algo"] == "ppo" and args["env"] == env_id and args["env_kwargs"] is None
     # YAML entry merged with the overrides
     assert hp["env_kwargs"]["ctrl_weight"] == 0.02
     assert hp["env_kwargs"]["x_tolerance_mm"] == 1.0
@@ -77,14 +91,15 @@ def test_sac_in_process_run_and_next_run_directory(tmp_path):
     first = train.main(argv)
     second = train.main(argv)
     assert first.name == "SoftHandReorient-v0_1" and second.name == "SoftHandReorient-v0_2"
-    assert (second / "model.zip").is_file() and not (second / "vecnormalize.pkl").exists()
+    assert (second / "SoftHandReorient-v0.zip").is_file()
+    assert not list(second.rglob("*vecnormalize*"))  # SAC entry: no normalisation
 
 
 def test_hyperparams_anchor_merge_and_schedules(tmp_path):
     conf = tmp_path / "ppo.yml"
     conf.write_text(
         ".base: &base\n  policy: MlpPolicy\n  n_timesteps: 100\n  learning_rate: lin_1e-3\n"
-        "  policy_kwargs: {net_arch: [8], activation_fn: relu}\n"
+        "  policy_kwargs: 'dict(net_arch=[8], activation_fn=nn.ReLU)'\n"
         "SoftHandTranslate-v0:\n  <<: *base\n  n_envs: 2\n"
     )
     hp = hyperparams.load_hyperparams("ppo", "SoftHandTranslate-v0", str(conf))
