@@ -4,13 +4,14 @@
 package; a mapping keyed by env id, YAML anchors allowed). The files are written in RL Zoo's
 dialect, so ``python -m rl_zoo3.train --gym-packages softhand_env --conf-file <file>`` reads
 them unchanged: ``policy_kwargs`` as a ``"dict(...)"`` string (read here without ``eval``,
-:mod:`agents.zoo_dialect`), ``lin_<v>`` schedules (RL Zoo's own ``linear_schedule``).
+:mod:`agents.zoo_dialect`), ``lin_<v>`` linear schedules.
 :func:`algo_kwargs` turns an entry into algorithm keywords.
 """
 
 from __future__ import annotations
 
 import importlib.util
+import math
 from pathlib import Path
 from typing import Any
 
@@ -83,17 +84,20 @@ def load_hyperparams(algo: str, env_id: str, conf_file: str | None = None) -> di
 
 
 def _schedule(key: str, value: Any) -> Any:
-    """``lin_<v>`` -> RL Zoo's linear schedule from v to 0 (``rl_zoo3.utils.linear_schedule``)."""
+    """``lin_<v>`` -> a linear schedule from v (start) to 0 (end), as RL Zoo's ``lin_`` values
+    (SB3's ``LinearSchedule``; rl_zoo3 itself is not imported in-process: importing it replaces
+    gymnasium's ``TimeLimit`` for every env of the process)."""
     if isinstance(value, str):
-        from rl_zoo3.utils import linear_schedule
+        from stable_baselines3.common.utils import LinearSchedule
 
         kind, _, initial = value.partition("_")
         try:
-            if kind != "lin":
+            start = float(initial)
+            if kind != "lin" or not math.isfinite(start):
                 raise ValueError
-            return linear_schedule(float(initial))
         except ValueError:
             raise UserError(f"{key}: bad value {value!r} (a number or lin_<number>)") from None
+        return LinearSchedule(start, 0.0, 1.0)
     return value
 
 

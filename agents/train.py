@@ -111,14 +111,15 @@ def parse_args(argv: Sequence[str] | None = None) -> argparse.Namespace:
 
 
 def next_run_dir(log_folder: Path, algo: str, env_id: str, name: str | None) -> Path:
-    """``<log_folder>/<algo>/<name>``, or ``<env_id>_<k>`` with k = latest run id + 1 (RL Zoo's
-    ``get_latest_run_id``)."""
-    from rl_zoo3.utils import get_latest_run_id
-
+    """``<log_folder>/<algo>/<name>``, or ``<env_id>_<k>`` with k = latest run id + 1, as
+    ``rl_zoo3.train`` numbers its runs (so both can share a log folder)."""
     base = log_folder / algo
     if name is not None:
         return base / name
-    return base / f"{env_id}_{get_latest_run_id(str(base), env_id) + 1}"
+    ids = [int(p.name.rpartition("_")[2]) for p in base.glob(f"{env_id}_*")
+           if p.is_dir() and p.name.rpartition("_")[2].isdigit()
+           and p.name.rpartition("_")[0] == env_id]
+    return base / f"{env_id}_{max(ids, default=0) + 1}"
 
 
 def resolve_config(args: argparse.Namespace) -> dict[str, Any]:

@@ -80,3 +80,13 @@ def test_zoo_optuna_optimisation_with_sqlite_storage(tmp_path):
     study = optuna.load_study(study_name="smoke", storage=storage)
     assert [t.state.name for t in study.trials] == ["COMPLETE", "COMPLETE"]
     assert all(t.params and t.value is not None for t in study.trials)  # sampled, scored
+
+
+def test_agents_do_not_import_rl_zoo3_in_process():
+    """Importing rl_zoo3 replaces gymnasium's TimeLimit for every env of the process (it adds
+    ``TimeLimit.truncated`` to infos); our CLIs read and write its formats without it."""
+    code = ("import sys, agents.train, agents.evaluate, agents.demo; "
+            "from agents.hyperparams import algo_kwargs, load_hyperparams; "
+            "algo_kwargs('ppo', {**load_hyperparams('ppo', 'SoftHandPose-v0'), "
+            "'learning_rate': 'lin_1e-3'}); assert 'rl_zoo3' not in sys.modules")
+    subprocess.run([sys.executable, "-c", code], env=ENV, check=True, timeout=300)
