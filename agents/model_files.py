@@ -29,7 +29,7 @@ RUNTIME_ENTRIES = ("_last_obs", "_last_original_obs", "_last_episode_starts", "e
                    "action_noise")
 #: Every ``:serialized:`` entry :func:`rebuilt_entries` provides.
 REBUILT_ENTRIES = ("policy_class", "policy_kwargs", "observation_space", "action_space",
-                   "lr_schedule", "learning_rate", "clip_range", "clip_range_vf",
+                   "lr_schedule", "learning_rate", "clip_range", "clip_range_vf", "train_freq",
                    *RUNTIME_ENTRIES)
 
 
@@ -97,6 +97,16 @@ def rebuilt_entries(algo_cls: type, hyperparams: dict[str, Any],
         out[key] = value
     lr = out["learning_rate"]
     out["lr_schedule"] = lr if callable(lr) else (lambda _: float(lr))
+    # off-policy algorithms: SB3 turns an int or (n, "step"|"episode") into its TrainFreq
+    import inspect
+
+    param = inspect.signature(algo_cls.__init__).parameters.get("train_freq")
+    freq = hyperparams.get("train_freq", param.default if param is not None else 1)
+    if isinstance(freq, list):
+        freq = tuple(freq)
+    if not (isinstance(freq, int) and not isinstance(freq, bool) or isinstance(freq, tuple)):
+        raise ModelFileError(f"train_freq must be an int or [n, unit] (got {freq!r})")
+    out["train_freq"] = freq
     return out
 
 

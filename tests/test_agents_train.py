@@ -93,6 +93,17 @@ def test_sac_in_process_run_and_next_run_directory(tmp_path):
     assert first.name == "SoftHandReorient-v0_1" and second.name == "SoftHandReorient-v0_2"
     assert (second / "SoftHandReorient-v0.zip").is_file()
     assert not list(second.rglob("*vecnormalize*"))  # SAC entry: no normalisation
+    # an off-policy zip loads safely too (train_freq and the replay buffer class rebuilt)
+    policy = loading.ModelPolicy(second)
+    env = env_factory.make_env("SoftHandReorient-v0", policy.env_kwargs)
+    policy.check_env(env)
+    obs = env.reset(seed=0)[0]
+    action, _ = policy.predict(obs)
+    assert env.action_space.contains(np.asarray(action, dtype=np.float32))
+    from stable_baselines3 import SAC
+
+    plain = SAC.load(second / "SoftHandReorient-v0.zip", buffer_size=1)  # our file: trusted
+    np.testing.assert_array_equal(action, plain.predict(obs, deterministic=True)[0])
 
 
 def test_hyperparams_anchor_merge_and_schedules(tmp_path):
