@@ -34,6 +34,17 @@ ALGOS: dict[str, tuple[str, str]] = {
 
 #: Keys of a hyper-parameter entry that train.py consumes (everything else goes to the algorithm).
 SPECIAL_KEYS = ("n_envs", "n_timesteps", "policy", "normalize", "env_kwargs", "env_wrapper")
+#: Documented ranges of numeric algorithm keys (checked before the algorithm allocates its
+#: buffers): key -> (low, high, integer?).
+NUMERIC_RANGES: dict[str, tuple[float, float, bool]] = {
+    "n_steps": (1, 1_000_000, True), "batch_size": (1, 10_000_000, True),
+    "n_epochs": (1, 10_000, True), "buffer_size": (1, 10_000_000, True),
+    "learning_starts": (0, 10**9, True), "gradient_steps": (-1, 10_000, True),
+    "gamma": (0.0, 1.0, False), "gae_lambda": (0.0, 1.0, False), "tau": (0.0, 1.0, False),
+    "vf_coef": (0.0, 1e3, False), "max_grad_norm": (0.0, 1e6, False),
+    "learning_rate": (0.0, 10.0, False), "clip_range": (0.0, 10.0, False),
+    "ent_coef": (0.0, 1e3, False),
+}
 #: Keys whose value may be a ``lin_<v>`` schedule (as in RL Zoo).
 SCHEDULE_KEYS = ("learning_rate", "clip_range", "clip_range_vf")
 #: Keys every entry must have.
@@ -101,6 +112,19 @@ def _schedule(key: str, value: Any) -> Any:
     return value
 
 
+def check_numeric(key: str, value: Any) -> None:
+    """:class:`UserError` if a numeric key of :data:`NUMERIC_RANGES` is out of its range, not
+    finite or of the wrong type (strings such as ``lin_<v>`` or ``auto`` pass through)."""
+    if key not in NUMERIC_RANGES or isinstance(value, str):
+        return
+    low, high, integer = NUMERIC_RANGES[key]
+    ok_type = isinstance(value, int) if integer else isinstance(value, (int, float))
+    if isinstance(value, bool) or not ok_type or not (math.isfinite(value)
+                                                        and low <= value <= high):
+        kind = "an int" if integer else "a number"
+        raise UserError(f"{key} must be {kind} in [{low:g}, {high:g}] (got {value!r})")
+
+
 def algo_class(algo: str) -> type:
     """The SB3 algorithm class of ``algo``."""
     import importlib
@@ -121,6 +145,7 @@ def algo_kwargs(algo: str, hp: dict[str, Any]) -> dict[str, Any]:
             continue
         if key not in allowed:
             raise UserError(f"{cls.__name__} has no hyper-parameter {key!r}")
+        check_numeric(key, value)
         if key == "policy_kwargs":
             try:
                 value = policy_kwargs_from(value)
