@@ -8,9 +8,10 @@
    and the same sequence replayed through ``gym.make("SoftHand-v0")`` by the scripted agent
    (animation).
 2. Chapter 4: the quasi-static handling process (Figs 4.8/4.9).
-3. The goal tasks: the model-based blind baseline and, where a trained model is shipped under
-   ``agents/models/<env id>``, the learned agent, on the same seeded held-out goals; a
-   comparison table is printed and written to ``summary.md``.
+3. The goal tasks: the model-based blind baseline and the shipped learned agent
+   (``agents/models/<algo>/<env id>_1``, installed with the package; a missing one is an error,
+   exit code 2, naming the file) on the same seeded held-out goals; a comparison table is
+   printed and written to ``summary.md``.
 """
 
 from __future__ import annotations
@@ -20,18 +21,19 @@ import time
 from collections.abc import Sequence
 from pathlib import Path
 
-from agents.common import ERROR_KEYS, resolve_model, run_cli
+from agents.cli import UserError, run_cli
+from agents.loading import resolve_model, shipped_models
+from agents.metrics import ERROR_KEYS
 
 GOAL_ENVS = ("SoftHandReorient-v0", "SoftHandTranslate-v0", "SoftHandPose-v0")
-MODELS = Path(__file__).resolve().parent / "models"
 
 
-def learned_label(model_dir: Path) -> str:
-    """Table label of a shipped model, from its run config (algorithm, residual or not)."""
-    config = resolve_model(model_dir)[2]
-    wrappers = str(config["hyperparams"].get("env_wrapper") or "")
+def learned_label(model: str | Path) -> str:
+    """Table label of a model, from its run config (algorithm, residual or not)."""
+    run = resolve_model(model)
+    wrappers = str(run.hyperparams.get("env_wrapper") or "")
     residual = ", residual on the loop plan" if "ResidualWrapper" in wrappers else ""
-    return f"learned ({config['algo'].upper()}{residual})"
+    return f"learned ({run.algo.upper()}{residual})"
 
 
 def parse_args(argv: Sequence[str] | None) -> argparse.Namespace:
@@ -79,12 +81,14 @@ def main(argv: Sequence[str] | None = None) -> list[str]:
         s = evaluate.main(["--policy", "model-based", "--env", env_id, *common, "--no-plots",
                            "--out", str(out / f"{env_id}_baseline")])
         rows.append(_row(env_id, "model-based baseline", s))
-        model = MODELS / env_id
-        if (model / "model.zip").is_file():
-            print(f"== {env_id}: learned agent ({model})")
-            s = evaluate.main(["--model", str(model), *common,
-                               "--out", str(out / f"{env_id}_learned")])
-            rows.append(_row(env_id, learned_label(model), s))
+        model = shipped_models().get(env_id)
+        if model is None:
+            raise UserError(f"no shipped model for {env_id}: expected "
+                            f"agents/models/<algo>/{env_id}_1/{env_id}.zip (package data)")
+        print(f"== {env_id}: learned agent ({model})")
+        s = evaluate.main(["--model", str(model), *common,
+                           "--out", str(out / f"{env_id}_learned")])
+        rows.append(_row(env_id, learned_label(model), s))
     summary = "\n".join(rows)
     (out / "summary.md").write_text(
         f"Held-out goals: seeds {args.seed} .. {args.seed + args.n_episodes - 1}; success = "

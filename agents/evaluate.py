@@ -15,8 +15,13 @@ theta_tolerance_deg=1.0`` set on the env). A model is played deterministically w
 ``gym.make`` keywords of its run (``config.yml``) and its frozen VecNormalize statistics; a
 scripted policy with the keywords it declares (``env_kwargs``, ``episode_steps``).
 
+With ``--goals FILE`` (a JSON list of goals in the task's SI units, see ``--help``) episode k
+plays goal k instead, ``reset(seed=SEED + k, options={"goal": goal_k})``, for models and
+scripted policies alike.
+
 Prints a table (success rate, final |x| and |theta| errors, return, episode length) and writes
-to ``--out`` (default ``logs/eval/<env>_<policy>``): ``results.yml`` (summary and every
+to ``--out`` (default ``logs/eval/<env id>/<model run or policy>``; earlier results are never
+overwritten without ``--force``): ``results.yml`` (summary and every
 episode), ``trajectories.png`` (object x, theta and set-points over time) and ``episode.gif``
 (the ``--gif-episode`` episode, by default the successful one in which the object moves most,
 rendered from ``render_mode="rgb_array"`` frames with the time, goal and object pose drawn on).
@@ -32,18 +37,10 @@ from typing import Any
 import numpy as np
 import yaml
 
-from agents.common import (
-    ERROR_KEYS,
-    ModelPolicy,
-    UserError,
-    final_errors,
-    goal_seeds,
-    make_env,
-    run_cli,
-    success_kwargs,
-    summarize,
-    task_targets,
-)
+from agents.cli import SEED_MAX, ArgumentParser, UserError, check_range, run_cli
+from agents.env_factory import goal_seeds, make_env, task_targets
+from agents.loading import ModelPolicy
+from agents.metrics import ERROR_KEYS, final_errors, success_kwargs, summarize
 from softhand_env.envs.signature import SIGNATURE_FIELDS
 from softhand_env.figures.episodes import (
     choose_episode,
@@ -57,19 +54,29 @@ SCRIPTED = ("paper", "handling", "model-based", "loop-plan")
 
 def parse_args(argv: Sequence[str] | None = None) -> argparse.Namespace:
     """Command-line arguments (see ``python -m agents.evaluate --help``)."""
-    p = argparse.ArgumentParser(
-        prog="python -m agents.evaluate", description=__doc__.split("\n\n")[0]
-    )
+    p = ArgumentParser(prog="python -m agents.evaluate", description=__doc__.split("\n\n")[0])
     who = p.add_mutually_exclusive_group(required=True)
-    who.add_argument("--model", help="saved model: directory with model.zip, or a .zip")
+    who.add_argument("--model", help="saved model: the env id of a shipped model, a run "
+                     "directory (RL Zoo layout: <env id>.zip, <env id>/config.yml) or a .zip "
+                     "in it")
     who.add_argument("--policy", choices=SCRIPTED, help="scripted policy (agents.scripted)")
     p.add_argument("--env", default=None,
                    help="env id (model: taken from its config; paper/handling: SoftHand-v0)")
     p.add_argument("--grasp-deg", type=float, default=6.0, help="handling: grasp angle (deg)")
-    p.add_argument("--n-episodes", type=int, default=100)
-    p.add_argument("--seed", type=int, default=10000, help="episode k: reset(seed=SEED + k)")
+    p.add_argument("--n-episodes", type=int, default=100, help="goals, 1 .. 100000")
+    p.add_argument("--seed", type=int, default=10000,
+                   help="episode k: reset(seed=SEED + k); 0 .. 2**32 - 1 - n_episodes")
+    p.add_argument("--goals", default=None, metavar="FILE",
+                   help="play these goals instead of seeded ones: a JSON list, one goal per "
+                        "episode, each a list in the task's SI units as reset(options={'goal': "
+                        "...}) takes it: [x (m)] for Translate, [theta (rad)] for Reorient, "
+                        "[x (m), theta (rad)] for Pose (a bare number for the 1-D tasks); "
+                        "episode k starts with reset(seed=SEED + k, options={'goal': goal k})")
     p.add_argument("--stochastic", action="store_true", help="sample model actions")
-    p.add_argument("--out", default=None, help="output directory")
+    p.add_argument("--out", default=None,
+                   help="output directory (default logs/eval/<env id>/<model run or policy>); "
+                        "an existing results.yml is never overwritten without --force")
+    p.add_argument("--force", action="store_true", help="overwrite earlier results in --out")
     p.add_argument("--no-plots", action="store_true", help="skip the PNG and the GIF")
     p.add_argument("--gif-episode", type=int, default=None,
                    help="episode index to animate (default: the successful episode in which "
@@ -77,16 +84,25 @@ def parse_args(argv: Sequence[str] | None = None) -> argparse.Namespace:
     p.add_argument("--gif-size", type=int, default=240, help="GIF frame size (px)")
     p.add_argument("--ignore-signature", nargs="+", default=[], metavar="FIELD",
                    help="model: env-signature fields not to check (e.g. version)")
-    p.add_argument("--device", default="cpu")
-    p.add_argument("--torch-threads", type=int, default=1)
-    return p.parse_args(argv)
+    p.add_argument("--trust-model", action="store_true",
+                   help="model: also load what only unpickling can read (zip entries that cannot "
+                        "be rebuilt, vecnormalize.pkl without .npz): runs code from the files")
+    p.add_argument("--device", default="cpu", choices=("cpu", "cuda", "auto"))
+    p.add_argument("--torch-threads", type=int, default=1, help="1 .. 256")
+    args = p.parse_args(argv)
+    check_range("--n-episodes", args.n_episodes, 1, 100_000)
+    check_range("--seed", args.seed, 0, SEED_MAX - args.n_episodes)
+    check_range("--torch-threads", args.torch_threads, 1, 256)
+    check_range("--gif-size", args.gif_size, 16, 2048)
+    check_range("--grasp-deg", args.grasp_deg, 0.0, 30.0)
+    return args
 
 
 # ---------------------------------------------------------------------------------- setup
 def build(args: argparse.Namespace) -> tuple[Any, str, dict[str, Any], Any, str]:
     """Policy, env id, ``gym.make`` keywords, env wrappers and a short name for the output."""
     if args.model is not None:
-        policy: Any = ModelPolicy(args.model, device=args.device)
+        policy: Any = ModelPolicy(args.model, device=args.device, trust_model=args.trust_model)
         if args.env is not None and args.env != policy.env_id:
             raise UserError(f"the model was trained on {policy.env_id}, not {args.env}")
         env_id, kwargs, wrapper = policy.env_id, dict(policy.env_kwargs), policy.env_wrapper
@@ -124,13 +140,19 @@ def build(args: argparse.Namespace) -> tuple[Any, str, dict[str, Any], Any, str]
 
 # -------------------------------------------------------------------------------- rollouts
 def run_episode(
-    env: Any, policy: Any, seed: int, deterministic: bool = True, frames: list | None = None
+    env: Any, policy: Any, seed: int, deterministic: bool = True, frames: list | None = None,
+    goal: Sequence[float] | None = None,
 ) -> dict[str, Any]:
-    """Play one episode from ``reset(seed=seed)``; returns its record (trajectory included).
+    """Play one episode from ``reset(seed=seed)`` (with ``options={"goal": goal}`` if given,
+    SI units, shape (goal_dim,)); returns its record (trajectory included).
 
     ``frames``: if a list, ``env.render()`` frames are appended (``render_mode="rgb_array"``).
     """
-    obs, info = env.reset(seed=seed)
+    options = None if goal is None else {"goal": np.asarray(goal, dtype=np.float64)}
+    try:
+        obs, info = env.reset(seed=seed, options=options)
+    except ValueError as exc:
+        raise UserError(f"goal {list(goal or ())}: {exc}") from None
     poses, setpoints = [info["object_pose"]], [info["setpoint"]]
     if frames is not None:
         frames.append(env.render())
@@ -162,12 +184,14 @@ def run_episode(
 
 
 def evaluate(
-    env: Any, policy: Any, seeds: Sequence[int], targets: Sequence[str], deterministic: bool = True
+    env: Any, policy: Any, seeds: Sequence[int], targets: Sequence[str], deterministic: bool = True,
+    goals: Sequence[Sequence[float]] | None = None,
 ) -> tuple[dict[str, float], list[dict[str, Any]]]:
-    """Play every goal of ``seeds``; returns the summary and the episode records."""
+    """Play every goal of ``seeds`` (or episode k: ``seeds[k]`` with ``goals[k]``); returns the
+    summary and the episode records."""
     episodes = []
-    for seed in seeds:
-        ep = run_episode(env, policy, seed, deterministic)
+    for k, seed in enumerate(seeds):
+        ep = run_episode(env, policy, seed, deterministic, goal=None if goals is None else goals[k])
         info = {"object_pose": ep["final_pose"], "goal": ep["goal"]}
         ep["errors"] = final_errors(info, targets)
         episodes.append(ep)
@@ -204,7 +228,8 @@ def format_table(title: str, summary: dict[str, float], targets: Sequence[str]) 
 
 
 def write_gif(path: Path, env_id: str, kwargs: dict[str, Any], wrapper: Any, policy: Any,
-              seed: int, size: int, deterministic: bool = True, fps: int = 25) -> None:
+              seed: int, size: int, deterministic: bool = True, fps: int = 25,
+              goal: Sequence[float] | None = None) -> None:
     """Replay one episode with ``render_mode="rgb_array"`` and save it as a GIF (``fps``), the
     time, goal and object pose drawn on every frame."""
     import imageio.v2 as imageio
@@ -212,7 +237,7 @@ def write_gif(path: Path, env_id: str, kwargs: dict[str, Any], wrapper: Any, pol
     env = make_env(env_id, kwargs, wrapper, render_mode="rgb_array", render_width=size,
                    render_height=size)
     frames: list = []
-    ep = run_episode(env, policy, seed, deterministic, frames)
+    ep = run_episode(env, policy, seed, deterministic, frames, goal)
     env.close()
     shown, duration = gif_frames(frames, env.unwrapped.dt,  # type: ignore[attr-defined]
                                  task_targets(env_id), ep["goal"],
@@ -221,13 +246,75 @@ def write_gif(path: Path, env_id: str, kwargs: dict[str, Any], wrapper: Any, pol
     imageio.mimsave(path, images, duration=duration, loop=0)
 
 
+def read_goals(path: str, targets: Sequence[str]) -> list[list[float]]:
+    """Goals of a ``--goals`` file: a JSON list, each goal a list of ``len(targets)`` finite
+    numbers in SI units (a bare number for a 1-D task); :class:`UserError` otherwise."""
+    import json
+
+    if not targets:
+        raise UserError("--goals needs a goal task (SoftHandTranslate/Reorient/Pose-v0)")
+    try:
+        data = json.loads(Path(path).read_text())
+    except OSError as exc:
+        raise UserError(f"--goals: cannot read {path}: {exc.strerror}") from None
+    except ValueError as exc:
+        raise UserError(f"--goals: {path} is not JSON: {exc}") from None
+    if not isinstance(data, list) or not data or len(data) > 100_000:
+        raise UserError(f"--goals: {path} must hold a JSON list of 1 .. 100000 goals")
+    units = {"x": "x (m)", "theta": "theta (rad)"}
+    want = "[" + ", ".join(units[t] for t in targets) + "]"
+    goals = []
+    for k, g in enumerate(data):
+        g = [g] if isinstance(g, (int, float)) and not isinstance(g, bool) else g
+        ok = (isinstance(g, list) and len(g) == len(targets)
+              and all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in g))
+        if not ok or not np.all(np.isfinite(np.asarray(g, dtype=float))):
+            raise UserError(f"--goals: goal {k} is {data[k]!r}; each goal must be {want}, finite")
+        goals.append([float(v) for v in g])
+    return goals
+
+
+def check_goal_range(env: Any, goals: Sequence[Sequence[float]]) -> None:
+    """:class:`UserError` for a goal outside the task's goal range ``[-goal_range, goal_range]``
+    per coordinate (the range the env samples from; read from the env's task when it has one,
+    else left to the env's own ``reset`` validation)."""
+    targets = getattr(getattr(env.unwrapped, "task", None), "targets", None)
+    found = [getattr(t, "goal_range", None) for t in targets or ()]
+    ranges = [float(r) for r in found if r is not None]
+    if not ranges or len(ranges) != len(found):
+        return
+    for k, goal in enumerate(goals):
+        for value, r in zip(goal, ranges, strict=True):
+            if abs(value) > r:
+                raise UserError(f"--goals: goal {k} = {list(goal)} is outside the task's range "
+                                f"(|goal| <= {[float(x) for x in ranges]}, SI units)")
+
+
+def output_dir(args: argparse.Namespace, env_id: str, policy: Any) -> Path:
+    """``--out``, or ``logs/eval/<env id>/<run dir>_<model>`` for a model (a distinct
+    directory per model file), ``logs/eval/<env id>/<policy>`` for a scripted policy."""
+    if args.out is not None:
+        return Path(args.out)
+    if isinstance(policy, ModelPolicy):
+        run = policy.run
+        name = f"{run.algo}_{run.run_dir.name}_{run.zip_path.stem}"
+    else:
+        name = args.policy if args.policy != "handling" else f"handling_{args.grasp_deg:g}deg"
+    return Path("logs") / "eval" / env_id / name
+
+
+def check_output(out: Path, force: bool) -> None:
+    """:class:`UserError` if ``out`` is a file, or holds results and ``force`` is not set."""
+    if out.exists() and not out.is_dir():
+        raise UserError(f"--out {out} exists and is not a directory")
+    if (out / "results.yml").exists() and not force:
+        raise UserError(f"{out} already holds results.yml; pass --force to overwrite it or "
+                        "--out to choose another directory")
+
+
 def main(argv: Sequence[str] | None = None) -> dict[str, float]:
     """CLI entry point; returns the summary."""
     args = parse_args(argv)
-    if args.n_episodes < 1:
-        raise UserError("--n-episodes must be >= 1")
-    if args.gif_episode is not None and not 0 <= args.gif_episode < args.n_episodes:
-        raise UserError("--gif-episode must index one of the episodes")
     unknown = sorted(set(args.ignore_signature) - set(SIGNATURE_FIELDS))
     if unknown:
         raise UserError(f"--ignore-signature: unknown field(s) {', '.join(unknown)}; fields: "
@@ -237,14 +324,27 @@ def main(argv: Sequence[str] | None = None) -> dict[str, float]:
     torch.set_num_threads(args.torch_threads)
     policy, env_id, kwargs, wrapper, name = build(args)
     targets = task_targets(env_id)
+    goals = None
+    if args.goals is not None:
+        goals = read_goals(args.goals, targets)
+        args.n_episodes = len(goals)
+        check_range("--seed", args.seed, 0, SEED_MAX - args.n_episodes)
+    if args.gif_episode is not None and not 0 <= args.gif_episode < args.n_episodes:
+        raise UserError("--gif-episode must index one of the episodes")
+    out = output_dir(args, env_id, policy)
+    check_output(out, args.force)
     env = make_env(env_id, kwargs, wrapper)
+    if goals is not None:
+        check_goal_range(env, goals)
     if isinstance(policy, ModelPolicy):
         policy.check_env(env, args.ignore_signature)
     seeds = goal_seeds(args.seed, args.n_episodes)
-    summary, episodes = evaluate(env, policy, seeds, targets, not args.stochastic)
-    title = evaluation_title(env_id, name, args.n_episodes, args.seed, targets)
+    summary, episodes = evaluate(env, policy, seeds, targets, not args.stochastic, goals)
+    if goals is None:
+        title = evaluation_title(env_id, name, args.n_episodes, args.seed, targets)
+    else:
+        title = f"{env_id}, {name} policy, {args.n_episodes} goals from {args.goals}"
     print(format_table(title, summary, targets))
-    out = Path(args.out or f"logs/eval/{env_id}_{name}")
     out.mkdir(parents=True, exist_ok=True)
     record = {
         "env_id": env_id,
@@ -252,6 +352,7 @@ def main(argv: Sequence[str] | None = None) -> dict[str, float]:
         "env_kwargs": kwargs,
         "env_wrapper": wrapper,
         "seed": args.seed,
+        "goals_file": args.goals,
         "summary": summary,
         "episodes": [{k: v for k, v in ep.items() if k not in ("pose", "setpoint")}
                      for ep in episodes],
@@ -263,7 +364,8 @@ def main(argv: Sequence[str] | None = None) -> dict[str, float]:
         plot_episodes(out / "trajectories.png", episodes, targets,
                       env.unwrapped.dt, title, shown)  # type: ignore[attr-defined]
         write_gif(out / "episode.gif", env_id, kwargs, wrapper, policy, seeds[shown],
-                  args.gif_size, not args.stochastic)
+                  args.gif_size, not args.stochastic,
+                  goal=None if goals is None else goals[shown])
     env.close()
     print(f"wrote {out}/results.yml" + ("" if args.no_plots else ", trajectories.png, episode.gif"))
     return summary

@@ -7,11 +7,17 @@ id, see that file) and nowhere else; the CLI only picks the entry and applies ov
     python -m agents.train --algo sac --env SoftHandReorient-v0 --n-timesteps 20000 \\
         --env-kwargs max_delta_deg:0.5 --hyperparams learning_rate:1e-3 --log-folder logs
 
-The run directory ``<log-folder>/<algo>/<env_id>_<k>/`` receives the config actually used
-(``config.yml``: YAML entry + overrides, seed, package versions, command, wall time), the final
-model and its VecNormalize statistics (``model.zip``, ``vecnormalize.pkl``), the best model on
-the validation goals (``best/``), checkpoints, ``evaluations.npz`` and TensorBoard logs (``tb/``).
-Evaluate it with ``python -m agents.evaluate --model <run dir>``.
+The run directory ``<log-folder>/<algo>/<env_id>_<k>/`` is laid out as RL Zoo's (see
+:mod:`agents.loading`): the final model ``<env_id>.zip``; ``<env_id>/config.yml`` (the YAML
+entry + overrides as the zoo saves it, plus our record: seed, env signature, validation
+results, package versions, command, wall time, sha256 of every model file),
+``<env_id>/args.yml``, the observation statistics ``<env_id>/vecnormalize.npz`` (plain arrays)
+and ``.pkl`` (for rl_zoo3); ``best_model.zip`` (best on the validation goals), checkpoints
+``rl_model_<n>_steps.zip``, ``evaluations.npz`` and TensorBoard logs (``tb/``). Every argument
+and hyper-parameter is checked (the algorithm and its envs are built) before the directory is
+created. Evaluate it with ``python -m agents.evaluate --model <run dir>`` or
+``python -m rl_zoo3.enjoy --gym-packages softhand_env -f <log-folder> --algo <algo> --env
+<env_id> --exp-id <k>``.
 
 Evaluation during training (:class:`HeldOutEvalCallback`) plays a fixed validation goal set
 (``--eval-seed``, default 5000: episode k starts with ``reset(seed=5000 + k)``), disjoint from
@@ -31,102 +37,115 @@ from datetime import datetime, timezone
 from pathlib import Path
 from typing import Any
 
-import yaml
 from stable_baselines3.common.callbacks import CheckpointCallback, EvalCallback
 from stable_baselines3.common.utils import set_random_seed
 from stable_baselines3.common.vec_env import VecNormalize
 
-from agents.common import (
-    ALGOS,
-    CONFIG_FILE,
-    MODEL_FILE,
-    VECNORM_FILE,
-    UserError,
-    algo_class,
-    algo_kwargs,
+from agents.cli import SEED_MAX, ArgumentParser, UserError, check_range, parse_kv, run_cli
+from agents.env_factory import (
+    VEC_ENVS,
     check_env_id,
-    config_path,
-    error_score,
-    final_errors,
     goal_seeds,
-    load_hyperparams,
     make_env,
     make_vec_env,
-    normalize_kwargs,
-    parse_kv,
-    run_cli,
-    success_kwargs,
-    summarize,
     task_targets,
+)
+from agents.hyperparams import (
+    ALGOS,
+    algo_class,
+    algo_kwargs,
+    config_path,
+    load_hyperparams,
+    normalize_kwargs,
     versions,
 )
+from agents.loading import BEST_MODEL
+from agents.metrics import error_score, final_errors, success_kwargs, summarize
+from agents.normalization import save_stats
+from agents.run_layout import save_vecnormalize, write_args, write_run_config
 from softhand_env.envs.signature import env_signature
 
 
 def parse_args(argv: Sequence[str] | None = None) -> argparse.Namespace:
-    """Command-line arguments (see ``python -m agents.train --help``)."""
-    p = argparse.ArgumentParser(
-        prog="python -m agents.train", description=__doc__.split("\n\n")[0]
-    )
+    """Command-line arguments (see ``python -m agents.train --help``), range-checked."""
+    p = ArgumentParser(prog="python -m agents.train", description=__doc__.split("\n\n")[0])
     p.add_argument("--env", required=True, help="environment id, e.g. SoftHandTranslate-v0")
     p.add_argument("--algo", default="ppo", choices=sorted(ALGOS))
     p.add_argument("--conf-file", default=None,
-                   help="hyper-parameter YAML (default softhand_env/configs/agents/<algo>.yml)")
-    p.add_argument("--seed", type=int, default=0)
+                   help="hyper-parameter YAML in RL Zoo's dialect (default: the installed "
+                        "softhand_env/configs/agents/<algo>.yml)")
+    p.add_argument("--seed", type=int, default=0, help="seed, 0 .. 2**32 - 1")
     p.add_argument("--env-kwargs", nargs="*", default=[], metavar="KEY:VALUE",
                    help="override env_kwargs of the entry (values parsed as YAML)")
     p.add_argument("--hyperparams", nargs="*", default=[], metavar="KEY:VALUE",
                    help="override algorithm keys of the entry (values parsed as YAML)")
-    p.add_argument("--n-timesteps", type=int, default=None, help="override n_timesteps")
+    p.add_argument("--n-timesteps", type=int, default=None, help="override n_timesteps (>= 1)")
     p.add_argument("--log-folder", default="logs")
-    p.add_argument("--run-name", default=None, help="run directory name (default <env>_<k>)")
+    p.add_argument("--run-name", default=None,
+                   help="run directory name (default <env>_<k>, k = latest + 1 as in RL Zoo)")
+    p.add_argument("--vec-env", default="dummy", choices=VEC_ENVS)
     p.add_argument("--eval-freq", type=int, default=50_000,
                    help="evaluate every this many env steps (<= 0: never)")
-    p.add_argument("--eval-episodes", type=int, default=20, help="validation goals")
+    p.add_argument("--eval-episodes", type=int, default=20, help="validation goals, 1 .. 10000")
     p.add_argument("--eval-seed", type=int, default=5000, help="seed of the validation goals")
     p.add_argument("--save-freq", type=int, default=250_000,
                    help="checkpoint every this many env steps (<= 0: never)")
-    p.add_argument("--device", default="cpu")
-    p.add_argument("--torch-threads", type=int, default=1)
+    p.add_argument("--device", default="cpu", choices=("cpu", "cuda", "auto"))
+    p.add_argument("--torch-threads", type=int, default=1, help="torch threads, 1 .. 256")
     p.add_argument("--no-progress-bar", action="store_true")
-    p.add_argument("--verbose", type=int, default=1)
-    return p.parse_args(argv)
+    p.add_argument("--verbose", type=int, default=1, choices=(0, 1, 2))
+    args = p.parse_args(argv)
+    check_range("--seed", args.seed, 0, SEED_MAX)
+    check_range("--eval-seed", args.eval_seed, 0, SEED_MAX - 10_000)
+    check_range("--eval-episodes", args.eval_episodes, 1, 10_000)
+    check_range("--torch-threads", args.torch_threads, 1, 256)
+    if args.n_timesteps is not None:
+        check_range("--n-timesteps", args.n_timesteps, 1, 10**10)
+    if args.run_name is not None and (not args.run_name or Path(args.run_name).name
+                                      != args.run_name or args.run_name in (".", "..")):
+        raise UserError(f"--run-name must be one directory name (got {args.run_name!r})")
+    log_folder = Path(args.log_folder)
+    if log_folder.exists() and not log_folder.is_dir():
+        raise UserError(f"--log-folder {log_folder} exists and is not a directory")
+    return args
 
 
 def next_run_dir(log_folder: Path, algo: str, env_id: str, name: str | None) -> Path:
-    """``<log_folder>/<algo>/<name>`` or the first free ``<env_id>_<k>`` (k = 1, 2, ...)."""
+    """``<log_folder>/<algo>/<name>``, or ``<env_id>_<k>`` with k = latest run id + 1, as
+    ``rl_zoo3.train`` numbers its runs (so both can share a log folder)."""
     base = log_folder / algo
     if name is not None:
         return base / name
-    k = 1
-    while (base / f"{env_id}_{k}").exists():
-        k += 1
-    return base / f"{env_id}_{k}"
+    ids = [int(p.name.rpartition("_")[2]) for p in base.glob(f"{env_id}_*")
+           if p.is_dir() and p.name.rpartition("_")[2].isdigit()
+           and p.name.rpartition("_")[0] == env_id]
+    return base / f"{env_id}_{max(ids, default=0) + 1}"
 
 
 def resolve_config(args: argparse.Namespace) -> dict[str, Any]:
-    """The run config: YAML entry merged with the CLI overrides (JSON/YAML-serialisable)."""
+    """The run config: ``hyperparams`` (YAML entry merged with the CLI overrides, the zoo's
+    dialect) and ``record`` (everything else we save with the run)."""
     check_env_id(args.env)
     hp = load_hyperparams(args.algo, args.env, args.conf_file)
     env_over = parse_kv(args.env_kwargs, "--env-kwargs")
     hp_over = parse_kv(args.hyperparams, "--hyperparams")
     hp.update(hp_over)
+    if not isinstance(hp["env_kwargs"], dict):
+        raise UserError("env_kwargs must be a mapping")
     hp["env_kwargs"] = {**hp["env_kwargs"], **env_over}
     if args.n_timesteps is not None:
-        if args.n_timesteps < 1:
-            raise UserError("--n-timesteps must be >= 1")
         hp["n_timesteps"] = args.n_timesteps
-    n_envs = hp["n_envs"]
-    if isinstance(n_envs, bool) or not isinstance(n_envs, int) or n_envs < 1:
-        raise UserError(f"n_envs must be an int >= 1 (got {n_envs!r})")
-    if args.eval_episodes < 1:
-        raise UserError("--eval-episodes must be >= 1")
-    return {
+    for key, low in (("n_envs", 1), ("n_timesteps", 1)):
+        value = hp[key]
+        if isinstance(value, bool) or not isinstance(value, int) or not low <= value <= 10**10:
+            raise UserError(f"{key} must be an int in [{low}, 1e10] (got {value!r})")
+    if hp["n_envs"] > 1024:
+        raise UserError(f"n_envs must be <= 1024 (got {hp['n_envs']})")
+    record = {
         "algo": args.algo,
         "env_id": args.env,
         "seed": args.seed,
         "conf_file": str(config_path(args.algo, args.conf_file)),
-        "hyperparams": hp,
         "overrides": {"env_kwargs": env_over, "hyperparams": hp_over,
                       "n_timesteps": args.n_timesteps},
         "save_freq": args.save_freq,
@@ -134,26 +153,22 @@ def resolve_config(args: argparse.Namespace) -> dict[str, Any]:
                  "eval_seed": args.eval_seed, "success_kwargs": success_kwargs(args.env)},
         "device": args.device,
         "torch_threads": args.torch_threads,
+        "vec_env": args.vec_env,
         "versions": versions(),
         "command": "python -m agents.train " + shlex.join(sys.argv[1:]),
         "started": datetime.now(timezone.utc).isoformat(timespec="seconds"),
     }
-
-
-def save_config(config: dict[str, Any], run_dir: Path) -> None:
-    """Write ``config.yml`` into the run directory."""
-    with (run_dir / CONFIG_FILE).open("w") as fh:
-        yaml.safe_dump(config, fh, sort_keys=False)
+    return {"hyperparams": hp, "record": record}
 
 
 class HeldOutEvalCallback(EvalCallback):
     """EvalCallback on a fixed goal set: logs the success rate and the final errors, keeps
-    the best model (and its VecNormalize statistics) by (success rate, -median error)."""
+    the best model (``best_model.zip``) and its statistics by (success rate, -median error)."""
 
-    def __init__(self, targets: tuple[str, ...], best_dir: Path, **kwargs: Any):
+    def __init__(self, targets: tuple[str, ...], run_dir: Path, **kwargs: Any):
         super().__init__(best_model_save_path=None, **kwargs)
         self.targets = targets
-        self.best_dir = best_dir
+        self.run_dir = run_dir
         self.best_key: tuple[float, float] | None = None
         self.best_summary: dict[str, Any] | None = None
         self._errors: list[dict[str, float]] = []
@@ -177,11 +192,10 @@ class HeldOutEvalCallback(EvalCallback):
         if self.best_key is None or rank > self.best_key:
             self.best_key = rank
             self.best_summary = {"timesteps": int(self.num_timesteps), **summary}
-            self.best_dir.mkdir(parents=True, exist_ok=True)
-            self.model.save(self.best_dir / MODEL_FILE)
+            self.model.save(self.run_dir / f"{BEST_MODEL}.zip")
             vecnorm = self.model.get_vec_normalize_env()
             if vecnorm is not None:
-                vecnorm.save(str(self.best_dir / VECNORM_FILE))
+                save_vecnormalize(vecnorm, self.run_dir / f"{BEST_MODEL}_vecnormalize")
             self.logger.record("eval/best_success_rate", summary["success_rate"])
         if self.verbose:
             errs = ", ".join(f"{k} {v:.3g}" for k, v in summary.items() if "median" in k)
@@ -190,100 +204,128 @@ class HeldOutEvalCallback(EvalCallback):
         return keep_going
 
 
+class Checkpoints(CheckpointCallback):
+    """SB3's CheckpointCallback (``rl_model_<n>_steps.zip``, VecNormalize pickle) that also
+    writes the statistics as plain arrays (``rl_model_vecnormalize_<n>_steps.npz``)."""
 
-def make_eval_callback(config: dict[str, Any], run_dir: Path, eval_env: Any) -> HeldOutEvalCallback:
-    """The validation callback of a run (every ``eval_freq`` env steps, best model in ``best/``)."""
-    ev = config["eval"]
-    n_envs = config["hyperparams"]["n_envs"]
-    return HeldOutEvalCallback(
-        targets=task_targets(config["env_id"]),
-        best_dir=run_dir / "best",
-        eval_env=eval_env,
-        n_eval_episodes=ev["n_eval_episodes"],
-        eval_freq=max(ev["eval_freq"] // n_envs, 1) if ev["eval_freq"] > 0 else 0,
-        log_path=str(run_dir),
-        deterministic=True,
-        verbose=1,
-    )
+    def _on_step(self) -> bool:
+        keep_going = super()._on_step()
+        vecnorm = self.model.get_vec_normalize_env()
+        if self.n_calls % self.save_freq == 0 and vecnorm is not None:
+            save_stats(vecnorm, self._checkpoint_path("vecnormalize_", extension="npz"))
+        return keep_going
 
 
-def train(config: dict[str, Any], run_dir: Path, progress_bar: bool = True, verbose: int = 1):
-    """Build envs, model and callbacks from ``config``, learn, save; returns the model."""
+def build(config: dict[str, Any], verbose: int = 1) -> tuple[Any, Any]:
+    """The algorithm (on its training envs) and the validation env of a run config.
+
+    Everything a hyper-parameter can break is built here, before the run directory exists;
+    any failure is a :class:`UserError` naming the algorithm.
+    """
     import torch
 
-    torch.set_num_threads(config["torch_threads"])
-    set_random_seed(config["seed"])
-    hp = config["hyperparams"]
-    env_id, algo, seed = config["env_id"], config["algo"], config["seed"]
+    hp, rec = config["hyperparams"], config["record"]
+    torch.set_num_threads(rec["torch_threads"])
+    set_random_seed(rec["seed"])
+    env_id, algo, seed = rec["env_id"], rec["algo"], rec["seed"]
     kwargs = algo_kwargs(algo, hp)
     norm = normalize_kwargs(hp["normalize"])
     wrapper = hp.get("env_wrapper")
-    env = make_vec_env(env_id, hp["n_envs"], hp["env_kwargs"], seed, hp["vec_env"],
+    env = make_vec_env(env_id, hp["n_envs"], hp["env_kwargs"], seed, rec["vec_env"],
                        env_wrapper=wrapper)
-    ev = config["eval"]
+    ev = rec["eval"]
     eval_env = make_vec_env(
         env_id, 1, {**hp["env_kwargs"], **ev["success_kwargs"]}, None,
         seeds=goal_seeds(ev["eval_seed"], ev["n_eval_episodes"]), env_wrapper=wrapper,
     )
-    if norm is not None:
-        norm_kw = {"gamma": kwargs.get("gamma", 0.99), **norm}
-        env = VecNormalize(env, **norm_kw)
-        eval_env = VecNormalize(eval_env, **{**norm_kw, "training": False, "norm_reward": False})
-    model = algo_class(algo)(
-        hp["policy"], env, seed=seed, device=config["device"], verbose=verbose,
-        tensorboard_log=str(run_dir / "tb"), **kwargs,
+    try:
+        if norm is not None:
+            norm_kw = {"gamma": kwargs.get("gamma", 0.99), **norm}
+            env = VecNormalize(env, **norm_kw)
+            eval_env = VecNormalize(eval_env, **{**norm_kw, "training": False,
+                                                 "norm_reward": False})
+        model = algo_class(algo)(hp["policy"], env, seed=seed, device=rec["device"],
+                                 verbose=verbose, **kwargs)
+    except Exception as exc:  # SB3 raises ValueError/TypeError/AssertionError/KeyError...
+        env.close()
+        eval_env.close()
+        msg = " ".join(str(exc).split()) or type(exc).__name__
+        raise UserError(f"cannot build {algo.upper()} from the hyper-parameters: {msg}") from None
+    return model, eval_env
+
+
+def train(config: dict[str, Any], run_dir: Path, model: Any, eval_env: Any,
+          progress_bar: bool = True) -> Any:
+    """Learn (validation and checkpoints as configured), save the run; returns the model."""
+    from stable_baselines3.common.logger import configure
+
+    hp, rec = config["hyperparams"], config["record"]
+    env_id = rec["env_id"]
+    model.set_logger(configure(str(run_dir / "tb" / rec["algo"]),
+                               ["stdout", "tensorboard"] if model.verbose else ["tensorboard"]))
+    ev = rec["eval"]
+    n_envs = hp["n_envs"]
+    evaluation = HeldOutEvalCallback(
+        targets=task_targets(env_id), run_dir=run_dir, eval_env=eval_env,
+        n_eval_episodes=ev["n_eval_episodes"],
+        eval_freq=max(ev["eval_freq"] // n_envs, 1) if ev["eval_freq"] > 0 else 0,
+        log_path=str(run_dir), deterministic=True, verbose=1,
     )
-    callbacks: list[Any] = [make_eval_callback(config, run_dir, eval_env)]
-    if config.get("save_freq", 0) > 0:
-        callbacks.append(
-            CheckpointCallback(
-                save_freq=max(config["save_freq"] // hp["n_envs"], 1),
-                save_path=str(run_dir / "checkpoints"),
-                name_prefix="model",
-                save_vecnormalize=True,
-            )
-        )
+    callbacks: list[Any] = [evaluation]
+    if rec.get("save_freq", 0) > 0:
+        callbacks.append(Checkpoints(save_freq=max(rec["save_freq"] // n_envs, 1),
+                                     save_path=str(run_dir), name_prefix="rl_model",
+                                     save_vecnormalize=True))
     t0 = time.time()
     interrupted = False
     try:
-        model.learn(
-            total_timesteps=int(hp["n_timesteps"]), callback=callbacks,
-            progress_bar=progress_bar, tb_log_name=algo,
-        )
+        model.learn(total_timesteps=int(hp["n_timesteps"]), callback=callbacks,
+                    progress_bar=progress_bar)
     except KeyboardInterrupt:
         interrupted = True
-    model.save(run_dir / MODEL_FILE)
+    model.save(run_dir / f"{env_id}.zip")
     vecnorm = model.get_vec_normalize_env()
     if vecnorm is not None:
-        vecnorm.save(str(run_dir / VECNORM_FILE))
-    config["wall_time_s"] = round(time.time() - t0, 1)
-    config["total_timesteps"] = int(model.num_timesteps)
-    config["interrupted"] = interrupted
-    best = callbacks[0].best_summary
-    if best is not None:
-        config["best_validation"] = {k: (float(v) if k != "timesteps" else v)
-                                     for k, v in best.items()}
-    save_config(config, run_dir)
-    env.close()
+        save_vecnormalize(vecnorm, run_dir / env_id / "vecnormalize")
+    rec["wall_time_s"] = round(time.time() - t0, 1)
+    rec["total_timesteps"] = int(model.num_timesteps)
+    rec["interrupted"] = interrupted
+    if evaluation.best_summary is not None:
+        rec["best_validation"] = {k: (float(v) if k != "timesteps" else v)
+                                  for k, v in evaluation.best_summary.items()}
+    write_run_config(run_dir, env_id, hp, rec)
+    model.get_env().close()
     eval_env.close()
     return model
 
 
 def main(argv: Sequence[str] | None = None) -> Path:
-    """CLI entry point; returns the run directory."""
+    """CLI entry point; returns the run directory.
+
+    Every argument and hyper-parameter is validated (envs, wrappers, algorithm built) before
+    the run directory is created: a rejected input leaves nothing behind.
+    """
     args = parse_args(argv)
     config = resolve_config(args)
-    hp = config["hyperparams"]
-    algo_kwargs(args.algo, hp)  # validate everything before creating the run directory
+    hp, rec = config["hyperparams"], config["record"]
     probe = make_env(args.env, hp["env_kwargs"], hp.get("env_wrapper"))
-    config["env_signature"] = env_signature(probe)  # checked when the model is loaded
+    rec["env_signature"] = env_signature(probe)  # checked when the model is loaded
     probe.close()
+    model, eval_env = build(config, verbose=args.verbose)
     run_dir = next_run_dir(Path(args.log_folder), args.algo, args.env, args.run_name)
-    run_dir.mkdir(parents=True, exist_ok=True)
-    save_config(config, run_dir)
+    if run_dir.exists():
+        raise UserError(f"run directory {run_dir} exists (choose another --run-name)")
+    (run_dir / args.env).mkdir(parents=True)
+    write_args(run_dir, args.env, {
+        "algo": args.algo, "seed": args.seed, "conf_file": rec["conf_file"],
+        "n_timesteps": hp["n_timesteps"], "device": args.device,
+        "num_threads": args.torch_threads, "vec_env": args.vec_env,
+        "eval_freq": args.eval_freq, "eval_episodes": args.eval_episodes,
+        "save_freq": args.save_freq, "log_folder": str(args.log_folder)})
+    write_run_config(run_dir, args.env, hp, rec)  # rewritten at the end (results, checksums)
     print(f"run directory: {run_dir}")
-    train(config, run_dir, progress_bar=not args.no_progress_bar, verbose=args.verbose)
-    print(f"saved {run_dir / MODEL_FILE} ({config['wall_time_s']} s)")
+    train(config, run_dir, model, eval_env, progress_bar=not args.no_progress_bar)
+    print(f"saved {run_dir / (args.env + '.zip')} ({rec['wall_time_s']} s)")
     return run_dir
 
 

@@ -11,10 +11,12 @@ import numpy as np
 import pytest
 import yaml
 
-from agents import common, evaluate
+from agents import cli, env_factory, evaluate, loading, metrics
+from agents.loading import shipped_models
+from agents.zoo_dialect import zoo_yaml_dump, zoo_yaml_load
 
 ROOT = Path(__file__).resolve().parent.parent
-MODELS = ROOT / "agents" / "models"
+SHIPPED_ZIPS = shipped_models()
 
 #: Shipped model -> lowest success rate accepted on the first 10 test goals (seeds
 #: 10000-10009). Measured on these 10: 10/10 for all three (on all 100 test goals: Translate
@@ -33,29 +35,26 @@ def evaluate_model(path: Path, n: int, seed: int = 10000):
     import torch
 
     torch.set_num_threads(1)  # small MLPs: one thread is fastest (and the CLI default)
-    policy = common.ModelPolicy(path)
-    kwargs = {**policy.env_kwargs, **common.success_kwargs(policy.env_id)}
-    env = common.make_env(policy.env_id, kwargs, policy.env_wrapper)
-    targets = common.task_targets(policy.env_id)
-    return evaluate.evaluate(env, policy, common.goal_seeds(seed, n), targets)
+    policy = loading.ModelPolicy(path)
+    kwargs = {**policy.env_kwargs, **metrics.success_kwargs(policy.env_id)}
+    env = env_factory.make_env(policy.env_id, kwargs, policy.env_wrapper)
+    targets = env_factory.task_targets(policy.env_id)
+    return evaluate.evaluate(env, policy, env_factory.goal_seeds(seed, n), targets)
 
 
 @pytest.mark.parametrize("env_id", sorted(SHIPPED))
 def test_shipped_model_reaches_its_success_rate_on_held_out_goals(env_id):
-    path = MODELS / env_id
-    if not (path / "model.zip").exists():
-        pytest.skip(f"no shipped model for {env_id}")
-    size = sum(f.stat().st_size for f in path.iterdir())
+    assert env_id in SHIPPED_ZIPS, f"no shipped model for {env_id}"
+    run = SHIPPED_ZIPS[env_id].parent
+    size = sum(f.stat().st_size for f in run.rglob("*") if f.is_file())
     assert size < 3e6, f"{env_id}: shipped files are {size / 1e6:.1f} MB"
-    summary, episodes = evaluate_model(path, 10)
+    summary, episodes = evaluate_model(env_id, 10)  # found by its env id
     assert summary["success_rate"] >= SHIPPED[env_id], summary
     assert all(ep["length"] == episodes[0]["length"] for ep in episodes)  # no early failures
 
 
 def test_evaluation_is_deterministic_and_success_means_final_error_below_1(tmp_path):
-    path = MODELS / "SoftHandTranslate-v0"
-    if not (path / "model.zip").exists():
-        pytest.skip("no shipped Translate model")
+    path = SHIPPED_ZIPS["SoftHandTranslate-v0"].parent
     a, eps = evaluate_model(path, 3)
     b, _ = evaluate_model(path, 3)
     assert a == b
@@ -91,10 +90,12 @@ def test_paper_sequence_on_the_no_task_env(tmp_path):
 
 def _expect_error(capsys, argv, fragment):
     with pytest.raises(SystemExit) as exc:
-        common.run_cli(evaluate.main, argv)
+        cli.run_cli(evaluate.main, argv)
     assert exc.value.code == 2
     err = capsys.readouterr().err
-    assert err.startswith("error: ") and err.count("\n") == 1 and fragment in err, err
+    *warnings, error = err.splitlines()  # the error: one line, last; warnings before it
+    assert error.startswith("error: ") and fragment in error, err
+    assert all(w.startswith("warning: ") for w in warnings), err
 
 
 def test_missing_model_file(capsys, tmp_path):
@@ -102,44 +103,47 @@ def test_missing_model_file(capsys, tmp_path):
 
 
 def test_corrupt_model_file(capsys, tmp_path):
-    (tmp_path / "model.zip").write_bytes(b"this is not a zip archive")
-    (tmp_path / "config.yml").write_text(yaml.safe_dump(
-        {"algo": "ppo", "env_id": "SoftHandTranslate-v0", "hyperparams": {"env_kwargs": {}}}))
-    _expect_error(capsys, ["--model", str(tmp_path)], "cannot load model")
+    run = tmp_path / "ppo" / "SoftHandTranslate-v0_1"
+    (run / "SoftHandTranslate-v0").mkdir(parents=True)
+    (run / "SoftHandTranslate-v0.zip").write_bytes(b"this is not a zip archive")
+    zoo_yaml_dump({"policy": "MlpPolicy", "env_kwargs": {}},
+                  run / "SoftHandTranslate-v0" / "config.yml")
+    _expect_error(capsys, ["--model", str(run)], "cannot load model")
 
 
 def test_model_without_config(capsys, tmp_path):
-    src = MODELS / "SoftHandTranslate-v0" / "model.zip"
-    if not src.exists():
-        pytest.skip("no shipped Translate model")
-    shutil.copy(src, tmp_path / "model.zip")
-    _expect_error(capsys, ["--model", str(tmp_path)], "no config.yml")
+    shutil.copy(SHIPPED_ZIPS["SoftHandTranslate-v0"], tmp_path / "SoftHandTranslate-v0.zip")
+    _expect_error(capsys, ["--model", str(tmp_path)], "not a run directory")
+    _expect_error(capsys, ["--model", str(tmp_path / "SoftHandTranslate-v0.zip")],
+                  "no <env id>/config.yml")
 
 
 def test_model_on_the_wrong_env(capsys):
-    if not (MODELS / "SoftHandTranslate-v0" / "model.zip").exists():
-        pytest.skip("no shipped Translate model")
-    _expect_error(capsys, ["--model", str(MODELS / "SoftHandTranslate-v0"),
-                           "--env", "SoftHandPose-v0"], "trained on SoftHandTranslate-v0")
+    _expect_error(capsys, ["--model", "SoftHandTranslate-v0", "--env", "SoftHandPose-v0"],
+                  "trained on SoftHandTranslate-v0")
+
+
+def test_unknown_model_id(capsys):
+    _expect_error(capsys, ["--model", "SoftHandNope-v0"], "neither a model path nor the id")
 
 
 def _shipped_copy(tmp_path, env_id="SoftHandTranslate-v0"):
-    """A writable copy of a shipped model directory and its parsed config."""
-    src = MODELS / env_id
-    if not (src / "model.zip").exists():
-        pytest.skip(f"no shipped {env_id} model")
+    """A writable copy of a shipped run directory and its parsed config.yml (record inside)."""
     dst = tmp_path / env_id
-    shutil.copytree(src, dst)
-    return dst, yaml.safe_load((dst / "config.yml").read_text())
+    shutil.copytree(SHIPPED_ZIPS[env_id].parent, dst)
+    return dst, zoo_yaml_load((dst / env_id / "config.yml").read_text())
+
+
+def _write_config(run, config, env_id="SoftHandTranslate-v0"):
+    zoo_yaml_dump(config, run / env_id / "config.yml")
 
 
 def test_shipped_models_carry_the_signature_of_their_env():
-    for cfg_path in MODELS.glob("*/config.yml"):
-        config = yaml.safe_load(cfg_path.read_text())
-        policy = common.ModelPolicy(cfg_path.parent)
-        hp = config["hyperparams"]
-        policy.check_env(common.make_env(config["env_id"], hp["env_kwargs"],
-                                         hp.get("env_wrapper")))
+    assert set(SHIPPED) <= set(SHIPPED_ZIPS)
+    for env_id, zip_path in SHIPPED_ZIPS.items():
+        policy = loading.ModelPolicy(zip_path.parent)
+        assert policy.run.record["env_signature"]["env_id"] == env_id
+        policy.check_env(env_factory.make_env(env_id, policy.env_kwargs, policy.env_wrapper))
 
 
 @pytest.mark.parametrize(
@@ -155,33 +159,33 @@ def test_shipped_models_carry_the_signature_of_their_env():
 )
 def test_model_whose_env_signature_differs_is_refused(capsys, tmp_path, field, value, fragment):
     run, config = _shipped_copy(tmp_path)
-    config["env_signature"][field] = value
-    (run / "config.yml").write_text(yaml.safe_dump(config, sort_keys=False))
+    config["softhand"]["env_signature"][field] = value
+    _write_config(run, config)
     _expect_error(capsys, ["--model", str(run), "--n-episodes", "1", "--no-plots",
                            "--out", str(tmp_path / "out")], fragment)
 
 
 def test_signature_field_can_be_ignored_on_purpose(capsys, tmp_path):
     run, config = _shipped_copy(tmp_path)
-    config["env_signature"]["version"] = "0.0.1"
-    (run / "config.yml").write_text(yaml.safe_dump(config, sort_keys=False))
+    config["softhand"]["env_signature"]["version"] = "0.0.1"
+    _write_config(run, config)
     argv = ["--model", str(run), "--n-episodes", "1", "--no-plots", "--out", str(tmp_path / "o")]
     evaluate.main([*argv, "--ignore-signature", "version"])
     _expect_error(capsys, [*argv, "--ignore-signature", "colour"], "unknown field(s) colour")
 
 
-def test_model_without_signature_is_shape_checked_with_a_warning(capsys, tmp_path):
+def test_model_without_signature_is_shape_checked(capsys, tmp_path):
     run, config = _shipped_copy(tmp_path)
-    del config["env_signature"]
-    config["hyperparams"]["env_kwargs"]["history_len"] = 2  # the shape check still catches it
-    (run / "config.yml").write_text(yaml.safe_dump(config, sort_keys=False))
-    with pytest.raises(SystemExit) as exc:
-        common.run_cli(evaluate.main, ["--model", str(run), "--n-episodes", "1", "--no-plots"])
-    assert exc.value.code == 2
-    warning, error = capsys.readouterr().err.splitlines()
-    assert warning.startswith("warning: ") and "no env_signature" in warning
-    assert error.startswith("error: ")
-    assert "observation_space has shape (9,), the env's (17,)" in error
+    del config["softhand"]["env_signature"]
+    config["env_kwargs"]["history_len"] = 2  # the shape check (before loading) catches it
+    _write_config(run, config)
+    _expect_error(capsys, ["--model", str(run), "--n-episodes", "1", "--no-plots"],
+                  "observation_space has shape (9,), the env's (17,)")
+    config["env_kwargs"]["history_len"] = 1  # same layout: plays, with a warning
+    _write_config(run, config)
+    evaluate.main(["--model", str(run), "--n-episodes", "1", "--no-plots",
+                   "--out", str(tmp_path / "o")])
+    assert "no env_signature" in capsys.readouterr().err
 
 
 @pytest.mark.parametrize(

@@ -11,7 +11,8 @@ import numpy as np
 import pytest
 import yaml
 
-from agents import common, train
+from agents import cli, env_factory, hyperparams, loading, train
+from agents.zoo_dialect import zoo_yaml_load
 
 ROOT = Path(__file__).resolve().parent.parent
 ENV = {**os.environ, "PYTHONPATH": str(ROOT), "SDL_VIDEODRIVER": "dummy", "MPLBACKEND": "Agg"}
@@ -35,15 +36,28 @@ def test_training_cli_smoke_run_writes_model_stats_config_and_tensorboard(tmp_pa
     )
     assert proc.returncode == 0, proc.stderr[-2000:]
     run = tmp_path / "ppo" / "SoftHandTranslate-v0_1"
-    for name in ("model.zip", "vecnormalize.pkl", "config.yml", "evaluations.npz",
-                 "best/model.zip", "best/vecnormalize.pkl"):
+    env_id = "SoftHandTranslate-v0"
+    # RL Zoo's run layout, plus the statistics as plain arrays
+    for name in (f"{env_id}.zip", f"{env_id}/vecnormalize.pkl", f"{env_id}/vecnormalize.npz",
+                 f"{env_id}/config.yml", f"{env_id}/args.yml", "evaluations.npz",
+                 "best_model.zip", "best_model_vecnormalize.npz", "rl_model_128_steps.zip",
+                 "rl_model_vecnormalize_128_steps.npz", "rl_model_vecnormalize_128_steps.pkl"):
         assert (run / name).is_file(), name
-    assert list((run / "checkpoints").glob("model_*_steps.zip"))
     assert list((run / "tb").rglob("events.out.tfevents.*"))
-    config = yaml.safe_load((run / "config.yml").read_text())
+    text = (run / env_id / "config.yml").read_text()
+    assert text.startswith("!!python/object/apply:collections.OrderedDict")  # as the zoo's
+    hp = zoo_yaml_load(text)
+    config = hp.pop("softhand")
     assert config["env_id"] == "SoftHandTranslate-v0" and config["seed"] == 3
     assert config["total_timesteps"] >= 256 and config["wall_time_s"] > 0
-    hp = config["hyperparams"]
+    # the sha256 of every model file of the run
+    assert set(config["sha256"]) == {
+        f"{env_id}.zip", f"{env_id}/vecnormalize.npz", f"{env_id}/vecnormalize.pkl",
+        f"{env_id}/args.yml", "best_model.zip", "best_model_vecnormalize.npz",
+        "best_model_vecnormalize.pkl", *(f"rl_model_{n}_steps.zip" for n in (128, 256)),
+        *(f"rl_model_vecnormalize_{n}_steps.{e}" for n in (128, 256) for e in ("npz", "pkl"))}
+    args = zoo_yaml_load((run / env_id / "args.yml").read_text())
+    assert args["algo"] == "ppo" and args["env"] == env_id and args["env_kwargs"] is None
     # YAML entry merged with the overrides
     assert hp["env_kwargs"]["ctrl_weight"] == 0.02
     assert hp["env_kwargs"]["x_tolerance_mm"] == 1.0
@@ -57,12 +71,12 @@ def test_training_cli_smoke_run_writes_model_stats_config_and_tensorboard(tmp_pa
     assert sig["env_id"] == "SoftHandTranslate-v0" and sig["observation_shape"] == [9]
     assert sig["action_mode"] == "delta" and sig["obs_mode"] == "proprio"
     # the saved run loads and acts on the env it was trained on
-    policy = common.ModelPolicy(run)
-    env = common.make_env("SoftHandTranslate-v0", policy.env_kwargs)
+    policy = loading.ModelPolicy(run)
+    env = env_factory.make_env("SoftHandTranslate-v0", policy.env_kwargs)
     policy.check_env(env)
     mismatch = r"obs_mode \(model 'proprio', env 'proprio_tactile'"
-    with pytest.raises(common.UserError, match=mismatch):
-        policy.check_env(common.make_env("SoftHandTranslate-v0",
+    with pytest.raises(cli.UserError, match=mismatch):
+        policy.check_env(env_factory.make_env("SoftHandTranslate-v0",
                                          {**policy.env_kwargs, "obs_mode": "proprio_tactile"}))
     obs, _ = env.reset(seed=0)
     action, _ = policy.predict(obs)
@@ -77,19 +91,31 @@ def test_sac_in_process_run_and_next_run_directory(tmp_path):
     first = train.main(argv)
     second = train.main(argv)
     assert first.name == "SoftHandReorient-v0_1" and second.name == "SoftHandReorient-v0_2"
-    assert (second / "model.zip").is_file() and not (second / "vecnormalize.pkl").exists()
+    assert (second / "SoftHandReorient-v0.zip").is_file()
+    assert not list(second.rglob("*vecnormalize*"))  # SAC entry: no normalisation
+    # an off-policy zip loads safely too (train_freq and the replay buffer class rebuilt)
+    policy = loading.ModelPolicy(second)
+    env = env_factory.make_env("SoftHandReorient-v0", policy.env_kwargs)
+    policy.check_env(env)
+    obs = env.reset(seed=0)[0]
+    action, _ = policy.predict(obs)
+    assert env.action_space.contains(np.asarray(action, dtype=np.float32))
+    from stable_baselines3 import SAC
+
+    plain = SAC.load(second / "SoftHandReorient-v0.zip", buffer_size=1)  # our file: trusted
+    np.testing.assert_array_equal(action, plain.predict(obs, deterministic=True)[0])
 
 
 def test_hyperparams_anchor_merge_and_schedules(tmp_path):
     conf = tmp_path / "ppo.yml"
     conf.write_text(
         ".base: &base\n  policy: MlpPolicy\n  n_timesteps: 100\n  learning_rate: lin_1e-3\n"
-        "  policy_kwargs: {net_arch: [8], activation_fn: relu}\n"
+        "  policy_kwargs: 'dict(net_arch=[8], activation_fn=nn.ReLU)'\n"
         "SoftHandTranslate-v0:\n  <<: *base\n  n_envs: 2\n"
     )
-    hp = common.load_hyperparams("ppo", "SoftHandTranslate-v0", str(conf))
+    hp = hyperparams.load_hyperparams("ppo", "SoftHandTranslate-v0", str(conf))
     assert hp["n_envs"] == 2 and hp["env_kwargs"] == {} and hp["normalize"] is False
-    kwargs = common.algo_kwargs("ppo", hp)
+    kwargs = hyperparams.algo_kwargs("ppo", hp)
     assert kwargs["learning_rate"](0.5) == pytest.approx(5e-4)
     import torch.nn as nn
 
@@ -99,16 +125,16 @@ def test_hyperparams_anchor_merge_and_schedules(tmp_path):
 
 def test_shipped_yaml_entries_are_valid():
     for algo in ("ppo",):
-        data = yaml.safe_load(common.config_path(algo, None).read_text())
+        data = yaml.safe_load(hyperparams.config_path(algo, None).read_text())
         for env_id in ("SoftHandTranslate-v0", "SoftHandReorient-v0", "SoftHandPose-v0"):
-            hp = common.load_hyperparams(algo, env_id)
-            common.algo_kwargs(algo, hp)
-            common.make_env(env_id, hp["env_kwargs"], hp.get("env_wrapper")).close()
+            hp = hyperparams.load_hyperparams(algo, env_id)
+            hyperparams.algo_kwargs(algo, hp)
+            env_factory.make_env(env_id, hp["env_kwargs"], hp.get("env_wrapper")).close()
         assert all(k.startswith(".") or k.startswith("SoftHand") for k in data)
 
 
 def test_goal_seeds_replay_the_same_goals_after_rewind():
-    env = common.GoalSeeds(common.make_env("SoftHandPose-v0"), [7, 8])
+    env = env_factory.GoalSeeds(env_factory.make_env("SoftHandPose-v0"), [7, 8])
     goals = [env.reset()[1]["goal"] for _ in range(3)]
     env.rewind()
     again = env.reset()[1]["goal"]
@@ -131,7 +157,7 @@ def test_goal_seeds_replay_the_same_goals_after_rewind():
 )
 def test_wrong_inputs_exit_2_with_one_line(tmp_path, capsys, argv, fragment):
     with pytest.raises(SystemExit) as exc:
-        common.run_cli(train.main, [*argv, "--log-folder", str(tmp_path), "--no-progress-bar"])
+        cli.run_cli(train.main, [*argv, "--log-folder", str(tmp_path), "--no-progress-bar"])
     assert exc.value.code == 2
     err = capsys.readouterr().err
     assert err.startswith("error: ") and err.count("\n") == 1 and fragment in err, err
@@ -142,7 +168,7 @@ def test_missing_required_key_is_reported(tmp_path, capsys):
     conf = tmp_path / "ppo.yml"
     conf.write_text("SoftHandTranslate-v0:\n  policy: MlpPolicy\n")
     with pytest.raises(SystemExit):
-        common.run_cli(train.main, ["--env", "SoftHandTranslate-v0", "--conf-file", str(conf)])
+        cli.run_cli(train.main, ["--env", "SoftHandTranslate-v0", "--conf-file", str(conf)])
     assert "lacks required key(s) n_timesteps" in capsys.readouterr().err
 
 
@@ -157,7 +183,7 @@ def test_error_exit_in_a_subprocess_has_no_traceback(tmp_path):
 def _pose_env(steps: int = 400):
     from agents.scripted import ABSOLUTE_RAD
 
-    return common.make_env("SoftHandPose-v0", {**ABSOLUTE_RAD, "max_episode_steps": steps})
+    return env_factory.make_env("SoftHandPose-v0", {**ABSOLUTE_RAD, "max_episode_steps": steps})
 
 
 def test_loop_plan_has_bounded_steps_loops_then_translation():
@@ -210,4 +236,4 @@ def test_residual_wrapper_offsets_are_bounded_and_it_needs_absolute_actions():
         obs, *_ = wrapped.step(np.array([1.0, -1.0]))
     np.testing.assert_allclose(obs[-5:-3], [1.0, -1.0])  # 2 deg cap reached after 4 steps
     with pytest.raises(ValueError, match="absolute"):
-        ResidualWrapper(common.make_env("SoftHandPose-v0"))
+        ResidualWrapper(env_factory.make_env("SoftHandPose-v0"))

@@ -16,8 +16,24 @@ def test_demo_writes_paper_figures_and_the_comparison_table(tmp_path):
     body = rows[2:]
     for env_id in demo.GOAL_ENVS:
         mine = [r for r in body if r.startswith(f"| {env_id} |")]
-        shipped = (demo.MODELS / env_id / "model.zip").is_file()
-        assert len(mine) == 1 + shipped, (env_id, mine)
+        assert len(mine) == 2, (env_id, mine)  # every goal task ships a learned agent
         assert "model-based baseline" in mine[0]
     assert "residual on the loop plan" in "".join(body)
     assert (out / "summary.md").read_text().count("\n| SoftHand") == len(body)
+
+
+def test_demo_exits_2_naming_a_missing_learned_model(tmp_path, monkeypatch, capsys):
+    import pytest
+
+    from agents import cli, loading
+
+    monkeypatch.setattr(loading, "MODELS_DIR", tmp_path / "no_models")
+    monkeypatch.setattr(demo, "shipped_models", loading.shipped_models)
+    monkeypatch.setattr("agents.evaluate.main", lambda argv: {"success_rate": 1.0})
+    monkeypatch.setattr("softhand_env.figures.main", lambda argv: None)
+    with pytest.raises(SystemExit) as exc:
+        cli.run_cli(demo.main, ["--out", str(tmp_path / "demo"), "--n-episodes", "1"])
+    assert exc.value.code == 2
+    err = capsys.readouterr().err
+    assert "no shipped model for SoftHandReorient-v0" in err
+    assert "agents/models/<algo>/SoftHandReorient-v0_1/SoftHandReorient-v0.zip" in err

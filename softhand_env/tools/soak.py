@@ -15,8 +15,10 @@ actions and reports
   at the end, their growth in percent, and the current RSS (``/proc/self/statm``) at both ends.
 
 Memory must stay flat: the exit status is 1 if the peak RSS grows by more than ``--max-growth``
-(default 5 %) or a non-finite value appeared, else 0. Not part of the default test run (a tiny
-smoke run is). ``--threads`` caps numba's worker threads (share a busy machine politely).
+(default 5 %) or a non-finite value appeared, else 0; a wrong argument (out of its range, an
+unknown env id) is exit status 2 with one line on stderr, before anything runs. Not part of
+the default test run (a tiny smoke run is). ``--threads`` caps numba's worker threads (share
+a busy machine politely).
 """
 
 from __future__ import annotations
@@ -161,21 +163,59 @@ def format_result(r: SoakResult) -> str:
     )
 
 
+class _UsageError(Exception):
+    """A wrong command-line argument: one line on stderr, exit status 2."""
+
+
+class _Parser(argparse.ArgumentParser):
+    def error(self, message: str):  # type: ignore[override,unused-ignore]
+        raise _UsageError(message)
+
+
+def _check_args(args: argparse.Namespace) -> None:
+    """Every argument in its documented range (``--help``), the env id registered."""
+    import gymnasium as gym
+
+    bounds = {"num_envs": (1, 65_536), "steps": (1, 10**11), "warmup": (0, 10**6),
+              "seed": (0, 2**32 - 1), "max_growth": (0.0, 1e6), "report_every": (0.0, 1e6)}
+    for name, (low, high) in bounds.items():
+        value = getattr(args, name)
+        if not (math.isfinite(value) and low <= value <= high):
+            raise _UsageError(f"--{name.replace('_', '-')} must be in [{low}, {high}] "
+                              f"(got {value})")
+    if args.threads is not None:
+        import numba
+
+        top = numba.config.NUMBA_NUM_THREADS  # type: ignore[attr-defined]
+        if not 1 <= args.threads <= top:
+            raise _UsageError(f"--threads must be in [1, {top}] (got {args.threads})")
+    import softhand_env  # noqa: F401  (registers the ids)
+
+    ours = sorted(k for k in gym.registry if k.startswith("SoftHand"))
+    if args.env_id not in ours:
+        raise _UsageError(f"--env-id {args.env_id!r} is not a soft-hand env ({', '.join(ours)})")
+
+
 def main(argv: list[str] | None = None) -> int:
-    """Command-line entry point; returns the exit status (see module doc)."""
-    parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    """Command-line entry point; returns the exit status: 0 soak passed, 1 soak failed (memory
+    growth or non-finite values), 2 wrong arguments (one line on stderr, nothing run)."""
+    parser = _Parser(description=__doc__.split("\n")[0])
     parser.add_argument("--env-id", default="SoftHandReorient-v0")
-    parser.add_argument("--num-envs", type=int, default=512)
-    parser.add_argument("--steps", type=int, default=1_000_000, help="environment steps")
+    parser.add_argument("--num-envs", type=int, default=512, help="1 .. 65536")
+    parser.add_argument("--steps", type=int, default=1_000_000, help="environment steps, >= 1")
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--warmup", type=int, default=20, help="vector steps before measuring")
-    parser.add_argument("--threads", type=int, default=None, help="numba threads (default all)")
+    parser.add_argument("--threads", type=int, default=None,
+                        help="numba threads, 1 .. the machine's (default all)")
     parser.add_argument("--max-growth", type=float, default=5.0, help="allowed peak RSS growth %%")
     parser.add_argument("--report-every", type=float, default=0.0, help="progress period (s)")
     parser.add_argument("--json", action="store_true", help="print the figures as JSON")
-    args = parser.parse_args(argv)
-    if args.num_envs < 1 or args.steps < 1 or args.warmup < 0:
-        parser.error("--num-envs and --steps must be >= 1, --warmup >= 0")
+    try:
+        args = parser.parse_args(argv)
+        _check_args(args)
+    except _UsageError as exc:
+        print(f"error: {' '.join(str(exc).split())}", file=sys.stderr)
+        return 2
     if args.threads is not None:
         import numba
 

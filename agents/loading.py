@@ -1,0 +1,311 @@
+"""Saved runs: find a model, its normalisation statistics and run config; play it like a script.
+
+A run is laid out as RL Zoo lays out its runs (``rl_zoo3.train`` writes the same, and
+``rl_zoo3.enjoy -f <log-folder>`` plays ours)::
+
+    <log-folder>/<algo>/<env_id>_<k>/
+        <env_id>.zip                  final model (SB3 zip)
+        <env_id>/config.yml           hyper-parameters (the zoo's OrderedDict YAML); ours add a
+                                      ``softhand`` entry: env signature, seed, validation
+                                      results, versions and the sha256 of every model file
+        <env_id>/args.yml             command-line arguments (the zoo's; env_kwargs)
+        <env_id>/vecnormalize.npz     observation statistics as plain arrays (read here)
+        <env_id>/vecnormalize.pkl     the same as SB3 pickles it (read by rl_zoo3 only)
+        best_model.zip                best on the validation goals (+ best_model_vecnormalize.*)
+        rl_model_<n>_steps.zip        checkpoints (+ rl_model_vecnormalize_<n>_steps.*)
+
+:func:`resolve_model` finds the files of a model given as a run directory, a ``.zip`` in one,
+or the id of a shipped model (``agents/models/<algo>/<env id>_1``, installed with the
+package). :class:`ModelPolicy` loads it without running code from it (no pickle: see
+:mod:`agents.model_files`, :mod:`agents.normalization`; ``env_wrapper`` allow-list:
+:func:`agents.env_factory.wrapper_list`; checksums from ``config.yml``) and wraps it in the
+scripted policies' ``predict`` signature, so one rollout loop evaluates both.
+"""
+
+from __future__ import annotations
+
+import re
+import sys
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+
+from agents.cli import UserError
+from agents.env_factory import make_env
+from agents.hyperparams import ALGOS, algo_class, normalize_kwargs
+from agents.model_files import ModelFileError, check_sha256, load_sb3
+from agents.normalization import ObsNormalizer
+from agents.zoo_dialect import zoo_yaml_load
+
+#: Shipped models (installed with the package), laid out as RL Zoo runs.
+MODELS_DIR = Path(__file__).resolve().parent / "models"
+#: Files of a run's parameter directory ``<run>/<env id>/``.
+CONFIG_FILE = "config.yml"
+ARGS_FILE = "args.yml"
+STATS_NPZ = "vecnormalize.npz"
+STATS_PKL = "vecnormalize.pkl"
+#: Key of our run record inside the zoo's ``config.yml``.
+RECORD_KEY = "softhand"
+#: Best model of a run.
+BEST_MODEL = "best_model"
+_CHECKPOINT = re.compile(r"rl_model_(\d+)_steps")
+
+
+@dataclass
+class ModelRun:
+    """The files and configuration of one saved model (see the module doc for the layout)."""
+
+    zip_path: Path
+    run_dir: Path
+    env_id: str
+    algo: str
+    #: Hyper-parameters (``config.yml`` without our record).
+    hyperparams: dict[str, Any]
+    #: Our run record (``config.yml``'s ``softhand`` entry), empty for a run of rl_zoo3.train.
+    record: dict[str, Any] = field(default_factory=dict)
+    #: ``args.yml`` (empty if absent).
+    args: dict[str, Any] = field(default_factory=dict)
+    stats_npz: Path | None = None
+    stats_pkl: Path | None = None
+
+    @property
+    def params_dir(self) -> Path:
+        return self.run_dir / self.env_id
+
+    @property
+    def env_kwargs(self) -> dict[str, Any]:
+        """``gym.make`` keywords of the run (``args.yml`` overrides the config, as in RL Zoo)."""
+        if self.args.get("env_kwargs") is not None:
+            return dict(self.args["env_kwargs"])
+        return dict(self.hyperparams.get("env_kwargs") or {})
+
+
+def shipped_models() -> dict[str, Path]:
+    """Env id -> model zip of the shipped models."""
+    out: dict[str, Path] = {}
+    for zip_path in sorted(MODELS_DIR.glob("*/*_*/*.zip")):
+        env_id = zip_path.stem
+        if zip_path.parent.name.startswith(env_id + "_"):
+            out.setdefault(env_id, zip_path)
+    return out
+
+
+def _read_yaml(path: Path) -> dict[str, Any]:
+    import yaml
+
+    try:
+        data = zoo_yaml_load(path.read_text())
+    except yaml.YAMLError as exc:
+        msg = " ".join(str(exc).split())
+        raise UserError(f"{path}: not readable as the zoo's YAML (plain values and OrderedDict "
+                        f"only): {msg}") from None
+    if not isinstance(data, dict):
+        raise UserError(f"{path}: expected a mapping")
+    return data
+
+
+def _stats_files(zip_path: Path, run_dir: Path, env_id: str) -> tuple[Path, Path]:
+    stem = zip_path.stem
+    match = _CHECKPOINT.fullmatch(stem)
+    if match:
+        base = run_dir / f"rl_model_vecnormalize_{match.group(1)}_steps"
+    elif stem == BEST_MODEL and (run_dir / f"{BEST_MODEL}_vecnormalize.npz").is_file():
+        base = run_dir / f"{BEST_MODEL}_vecnormalize"
+    else:
+        base = run_dir / env_id / "vecnormalize"
+    return base.with_suffix(".npz"), base.with_suffix(".pkl")
+
+
+def resolve_model(spec: str | Path) -> ModelRun:
+    """The files of a saved model (:class:`ModelRun`).
+
+    ``spec`` is a run directory (``<env id>.zip`` beside ``<env id>/config.yml``), a ``.zip``
+    in one (final, ``best_model.zip`` or a checkpoint), or the env id of a shipped model.
+    """
+    p = Path(spec)
+    if not p.exists() and "/" not in str(spec) and not str(spec).endswith(".zip"):
+        shipped = shipped_models()
+        if str(spec) not in shipped:
+            raise UserError(f"{spec!r} is neither a model path nor the id of a shipped model "
+                            f"(shipped: {', '.join(shipped) or 'none'})")
+        p = shipped[str(spec)]
+    if p.is_dir():
+        zips = [z for z in sorted(p.glob("*.zip")) if (p / z.stem / CONFIG_FILE).is_file()]
+        if len(zips) != 1:
+            raise UserError(f"{p} is not a run directory: expected <env id>.zip beside "
+                            f"<env id>/{CONFIG_FILE} (the layout of rl_zoo3.train and "
+                            "agents.train)")
+        p = zips[0]
+    if not p.is_file():
+        raise UserError(f"model file {p} not found")
+    run_dir = p.parent
+    params = [d for d in sorted(run_dir.iterdir()) if (d / CONFIG_FILE).is_file()]
+    if len(params) != 1:
+        raise UserError(f"no <env id>/{CONFIG_FILE} beside {p} (one expected, found "
+                        f"{len(params)})")
+    env_id = params[0].name
+    hyperparams = _read_yaml(params[0] / CONFIG_FILE)
+    record = hyperparams.pop(RECORD_KEY, None) or {}
+    if not isinstance(record, dict):
+        raise UserError(f"{params[0] / CONFIG_FILE}: {RECORD_KEY} must be a mapping")
+    args_path = params[0] / ARGS_FILE
+    args = _read_yaml(args_path) if args_path.is_file() else {}
+    algo = args.get("algo") or record.get("algo") or run_dir.parent.name
+    if algo not in ALGOS:
+        raise UserError(f"{p}: unknown algo {algo!r} (from args.yml or the folder name; "
+                        f"known: {', '.join(ALGOS)})")
+    npz, pkl = _stats_files(p, run_dir, env_id)
+    return ModelRun(zip_path=p, run_dir=run_dir, env_id=env_id, algo=algo,
+                    hyperparams=hyperparams, record=record, args=args,
+                    stats_npz=npz if npz.is_file() else None,
+                    stats_pkl=pkl if pkl.is_file() else None)
+
+
+class ModelPolicy:
+    """A saved SB3 model (and its observation statistics) with the scripted ``predict`` API.
+
+    Loading runs no code from the model's files: the zip's pickled entries are rebuilt from the
+    run config and the env, weights are read with ``weights_only=True``, statistics from the
+    ``.npz``, ``env_wrapper`` entries limited to an allow-list, and every file is checked
+    against the sha256 recorded in ``config.yml``.
+
+    Parameters
+    ----------
+    spec : str or Path
+        See :func:`resolve_model`.
+    device : str
+        Torch device.
+    trust_model : bool
+        Also accept what cannot be loaded without unpickling: ``:serialized:`` zip entries
+        that cannot be rebuilt, and ``vecnormalize.pkl`` when there is no ``.npz`` (code in
+        those files runs). Checksums, the wrapper allow-list and the env checks still apply.
+    """
+
+    def __init__(self, spec: str | Path, device: str = "cpu", trust_model: bool = False):
+        run = resolve_model(spec)
+        self.run = run
+        #: The model zip.
+        self.path = run.zip_path
+        self.env_id = run.env_id
+        self.algo = run.algo
+        hp = run.hyperparams
+        #: gym.make keywords of the run (including ``max_episode_steps`` if it set one).
+        self.env_kwargs: dict[str, Any] = run.env_kwargs
+        #: Wrappers of the run (``env_wrapper`` entry).
+        self.env_wrapper = hp.get("env_wrapper")
+        self.episode_steps: int | None = None
+        norm = normalize_kwargs(hp.get("normalize"))
+        stats = run.stats_npz if run.stats_npz is not None else run.stats_pkl
+        self._check_files(stats if norm is not None else None)
+        probe = make_env(self.env_id, self.env_kwargs, self.env_wrapper)
+        obs_space, act_space = probe.observation_space, probe.action_space
+        probe.close()
+        extra = {"buffer_size": 1} if self.algo in ("sac", "td3", "tqc") else {}
+        try:
+            self.model = load_sb3(algo_class(self.algo), self.path, hp, obs_space, act_space,
+                                  device=device, trust=trust_model, **extra)
+        except (ModelFileError, UserError) as exc:
+            raise UserError(f"cannot load model {self.path}: {exc}") from None
+        except Exception as exc:  # zipfile, torch (weights_only refusals), shapes: "cannot load"
+            raise UserError(f"cannot load model {self.path}: {type(exc).__name__}: {exc}") from None
+        #: Frozen observation normalisation (callable), or None without normalisation.
+        self.normalizer: Any = None
+        if norm is not None:
+            self.normalizer = self._load_stats(trust_model)
+        self.recurrent = self.algo == "ppo_lstm"
+
+    def _check_files(self, stats: Path | None) -> None:
+        run = self.run
+        sums = run.record.get("sha256")
+        if not sums:
+            print(f"warning: {run.params_dir / CONFIG_FILE} records no sha256 of the model "
+                  "files: a swapped file cannot be detected", file=sys.stderr)
+            return
+        files = [run.zip_path] + ([stats] if stats is not None else [])
+        if (run.params_dir / ARGS_FILE).is_file():
+            files.append(run.params_dir / ARGS_FILE)
+        try:
+            for f in files:
+                check_sha256(run.run_dir, f, sums)
+        except ModelFileError as exc:
+            raise UserError(f"refusing {self.path}: {exc}") from None
+
+    def _load_stats(self, trust_model: bool) -> Any:
+        run = self.run
+        obs_dim = int(np.prod(self.model.observation_space.shape))
+        if run.stats_npz is not None:
+            try:
+                return ObsNormalizer(run.stats_npz, obs_dim)
+            except ValueError as exc:
+                raise UserError(f"cannot load {exc}") from None
+        if run.stats_pkl is None:
+            raise UserError(f"{self.path}: the run normalises observations but has no "
+                            f"{STATS_NPZ} for it")
+        if not trust_model:
+            raise UserError(f"{self.path}: the observation statistics are only in "
+                            f"{run.stats_pkl.name} (a pickle, which can run code); pass "
+                            "--trust-model to read it if you trust where it came from")
+        import pickle
+
+        try:
+            with open(run.stats_pkl, "rb") as fh:
+                vecnormalize = pickle.load(fh)  # noqa: S301 - only with --trust-model
+            vecnormalize.training = False
+            vecnormalize.norm_reward = False
+        except Exception as exc:
+            raise UserError(f"cannot load {run.stats_pkl}: {type(exc).__name__}: {exc}") from None
+        return vecnormalize.normalize_obs
+
+    def check_env(self, env: gym.Env, ignore: Sequence[str] = ()) -> None:
+        """Raise :class:`UserError` if the model does not fit ``env``.
+
+        Two checks, both before the first step: the run's env signature (``env_signature`` of
+        the run record in its ``config.yml``, written by :mod:`agents.train`: env id, package
+        version, task, observation layout, action mapping, control period; see
+        :mod:`softhand_env.envs.signature`) against the signature of ``env``'s base
+        environment, then the model's observation/action shapes against ``env``'s (wrappers
+        included). ``ignore`` names signature fields not to compare (e.g. ``version``). A run
+        without a signature (trained before signatures existed) only gets the shape check and
+        a warning on stderr.
+        """
+        from softhand_env.envs.signature import check_model_compatibility
+
+        saved = self.run.record.get("env_signature")
+        if saved is None:
+            print(f"warning: {self.path} has no env_signature in its {CONFIG_FILE}: only the "
+                  "observation and action shapes are checked", file=sys.stderr)
+        else:
+            try:
+                check_model_compatibility(saved, env, ignore=tuple(ignore))
+            except ValueError as exc:
+                raise UserError(f"{self.path}: {exc} (retrain, or pass --ignore-signature "
+                                "FIELD to run it anyway)") from None
+        for name in ("observation_space", "action_space"):
+            want, got = getattr(self.model, name).shape, getattr(env, name).shape
+            if want != got:
+                raise UserError(f"{self.path}: the model's {name} has shape {want}, the env's "
+                                f"{got}")
+
+    def normalize(self, obs: np.ndarray) -> np.ndarray:
+        """Observation as the model saw it in training (VecNormalize, statistics frozen)."""
+        if self.normalizer is None:
+            return obs
+        return self.normalizer(obs)
+
+    def predict(
+        self,
+        observation: np.ndarray,
+        state: Any = None,
+        episode_start: np.ndarray | None = None,
+        deterministic: bool = True,
+    ) -> tuple[np.ndarray, Any]:
+        """SB3 prediction on the normalised observation (recurrent state passed through)."""
+        obs = self.normalize(np.asarray(observation, dtype=np.float32))
+        if self.recurrent:
+            return self.model.predict(obs, state, episode_start, deterministic)
+        action, _ = self.model.predict(obs, deterministic=deterministic)
+        return action, None
