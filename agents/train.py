@@ -60,6 +60,7 @@ from agents.common import (
     task_targets,
     versions,
 )
+from agents.native_vec_env import make_sb3_vec_env
 from softhand_env.envs.signature import env_signature
 
 
@@ -218,8 +219,8 @@ def train(config: dict[str, Any], run_dir: Path, progress_bar: bool = True, verb
     kwargs = algo_kwargs(algo, hp)
     norm = normalize_kwargs(hp["normalize"])
     wrapper = hp.get("env_wrapper")
-    env = make_vec_env(env_id, hp["n_envs"], hp["env_kwargs"], seed, hp["vec_env"],
-                       env_wrapper=wrapper)
+    env = make_sb3_vec_env(env_id, hp["n_envs"], seed, hp["env_kwargs"], hp["vec_env"],
+                           env_wrapper=wrapper)
     ev = config["eval"]
     eval_env = make_vec_env(
         env_id, 1, {**hp["env_kwargs"], **ev["success_kwargs"]}, None,

@@ -110,3 +110,16 @@ def test_split_infos_masks_and_scalars():
     assert out[0] == {"a": 1.0, "v": out[0]["v"]} and type(out[0]["a"]) is float
     assert out[1]["r"] == "success" and "a" not in out[1]
     np.testing.assert_array_equal(out[1]["v"], np.ones(3))
+
+
+def test_train_cli_runs_on_the_native_vec_env(tmp_path):
+    from agents import train
+
+    run = train.main([
+        "--env", ENV_ID, "--algo", "ppo", "--n-timesteps", "256", "--eval-freq", "0",
+        "--save-freq", "0", "--log-folder", str(tmp_path), "--no-progress-bar", "--verbose", "0",
+        "--env-kwargs", "max_episode_steps:50",
+        "--hyperparams", "vec_env:native", "n_envs:4", "n_steps:64", "batch_size:128",
+        "n_epochs:1",
+    ])
+    assert (run / "model.zip").is_file() and (run / "vecnormalize.pkl").is_file()
