@@ -15,24 +15,30 @@ translates between the two conventions without copying any transition logic:
 * **Seeding.** ``seed(s)`` then ``reset()`` seeds env i with ``s + i`` (SB3's rule, and
   ``reset(seed=[...])`` of the vector env), so the same seeds and actions give the same
   transitions as ``DummyVecEnv`` (``tests/test_native_vec_env.py``).
+* **Episode statistics.** As under SB3's ``Monitor``, the info of an episode's last step
+  carries ``"episode": {"r": return, "l": length, "t": seconds since creation}``. The adapter
+  does this itself rather than under ``VecMonitor``, so that a training env
+  ``VecNormalize(NativeVecEnv)`` has the wrapper depth of an evaluation env
+  ``VecNormalize(DummyVecEnv)`` (``sync_envs_normalization`` walks both chains in step).
 * **Attributes.** The N hands live in one object: :meth:`get_attr` returns the vector env's
   attribute once per requested index, :meth:`set_attr` and :meth:`env_method` act on the
   vector env once and need all indices (a per-env setting does not exist there).
 
-:func:`make_sb3_vec_env` builds either this adapter (``vec_env="native"``, wrapped in
-``VecMonitor`` for the episode statistics) or the ``DummyVecEnv``/``SubprocVecEnv`` of
-monitored single envs of :func:`agents.common.make_vec_env`.
+:func:`make_sb3_vec_env` builds either this adapter (``vec_env="native"``) or the
+``DummyVecEnv``/``SubprocVecEnv`` of monitored single envs of
+:func:`agents.common.make_vec_env`.
 """
 
 from __future__ import annotations
 
+import time
 from collections.abc import Sequence
 from typing import Any
 
 import gymnasium as gym
 import numpy as np
 from gymnasium.vector import AutoresetMode
-from stable_baselines3.common.vec_env import VecEnv, VecMonitor
+from stable_baselines3.common.vec_env import VecEnv
 from stable_baselines3.common.vec_env.base_vec_env import VecEnvIndices, VecEnvStepReturn
 
 #: vec_env choices of :func:`make_sb3_vec_env`.
@@ -103,6 +109,9 @@ class NativeVecEnv(VecEnv):
             )
         self.venv = venv
         self._actions: np.ndarray | None = None
+        self._t0 = time.time()
+        self._returns = np.zeros(venv.num_envs)
+        self._lengths = np.zeros(venv.num_envs, dtype=np.int64)
         super().__init__(venv.num_envs, venv.single_observation_space, venv.single_action_space)
         self.metadata = {**venv.metadata, "render_modes": self.metadata["render_modes"]}
 
@@ -131,6 +140,8 @@ class NativeVecEnv(VecEnv):
             for i in members:
                 infos[i] = split[i]
         self.reset_infos = infos
+        self._returns[:] = 0.0
+        self._lengths[:] = 0
         self._reset_seeds()
         self._reset_options()
         return obs
@@ -146,11 +157,18 @@ class NativeVecEnv(VecEnv):
         n = self.num_envs
         dones = np.logical_or(terminated, truncated)
         infos = split_infos(info, n)
+        self._returns += rewards
+        self._lengths += 1
         for i in range(n):
             infos[i]["TimeLimit.truncated"] = bool(truncated[i] and not terminated[i])
         if dones.any():
+            t = round(time.time() - self._t0, 6)
             for i in np.flatnonzero(dones):
                 infos[i]["terminal_observation"] = _row(obs, i)
+                infos[i]["episode"] = {"r": round(float(self._returns[i]), 6),
+                                       "l": int(self._lengths[i]), "t": t}
+            self._returns[dones] = 0.0
+            self._lengths[dones] = 0
             new_obs, reset_info = self.venv.reset(options={"reset_mask": dones.copy()})
             reset_split = split_infos(reset_info, n)
             for i in np.flatnonzero(dones):
@@ -200,8 +218,12 @@ class NativeVecEnv(VecEnv):
     def env_is_wrapped(
         self, wrapper_class: type[gym.Wrapper], indices: VecEnvIndices = None
     ) -> list[bool]:
-        """False for every env (there are no per-env Gymnasium wrappers)."""
-        return [False for _ in self._get_indices(indices)]
+        """True for SB3's ``Monitor`` (the adapter reports its episode statistics), else False
+        (there are no per-env Gymnasium wrappers)."""
+        from stable_baselines3.common.monitor import Monitor
+
+        wrapped = wrapper_class is Monitor
+        return [wrapped for _ in self._get_indices(indices)]
 
     def get_images(self) -> Sequence[np.ndarray | None]:
         frames = self.venv.render()
@@ -236,7 +258,7 @@ def make_sb3_vec_env(
     vec_env : str
         ``"dummy"`` / ``"subproc"`` (single envs, :func:`agents.common.make_vec_env`) or
         ``"native"`` (one :class:`~softhand_env.envs.vector.SoftHandVectorEnv` in
-        :class:`NativeVecEnv`, under ``VecMonitor``).
+        :class:`NativeVecEnv`, which reports the episode statistics itself).
     env_wrapper : optional
         Single-env wrappers (``env_wrapper`` of the hyper-parameter YAML); the native vector
         env takes none (ValueError).
@@ -260,4 +282,4 @@ def make_sb3_vec_env(
     sb3 = NativeVecEnv(venv)
     if seed is not None:
         sb3.seed(seed)
-    return VecMonitor(sb3)
+    return sb3

@@ -36,6 +36,7 @@ from stable_baselines3.common.callbacks import CheckpointCallback, EvalCallback
 from stable_baselines3.common.utils import set_random_seed
 from stable_baselines3.common.vec_env import VecNormalize
 
+from agents import policies  # noqa: F401  (registers AsymmetricPolicy / BlindActorPolicy)
 from agents.common import (
     ALGOS,
     CONFIG_FILE,

@@ -5,7 +5,8 @@ from __future__ import annotations
 import gymnasium as gym
 import numpy as np
 import pytest
-from stable_baselines3.common.vec_env import DummyVecEnv, VecMonitor, VecNormalize
+from stable_baselines3.common.monitor import Monitor
+from stable_baselines3.common.vec_env import DummyVecEnv, VecNormalize
 
 import softhand_env  # noqa: F401
 from agents.native_vec_env import NativeVecEnv, make_sb3_vec_env, split_infos
@@ -29,7 +30,9 @@ def _assert_info_equal(a, b, where):
     assert sorted(a) == sorted(b), where
     for key, vb in b.items():
         va = a[key]
-        if isinstance(vb, (str, type(None), bool, int)):
+        if key == "episode":  # Monitor's statistics; "t" is wall time
+            assert (va["r"], va["l"]) == (vb["r"], vb["l"]), where
+        elif isinstance(vb, (str, type(None), bool, int)):
             assert va == vb and type(va) is type(vb), (where, key)
         else:
             # same kernel code per system: equal to round-off (in practice bit-equal)
@@ -38,7 +41,7 @@ def _assert_info_equal(a, b, where):
 
 def _pair(**kwargs):
     kw = {**KWARGS, **kwargs}
-    dummy = DummyVecEnv([lambda: gym.make(ENV_ID, **kw) for _ in range(N)])
+    dummy = DummyVecEnv([lambda: Monitor(gym.make(ENV_ID, **kw)) for _ in range(N)])
     native = NativeVecEnv(gym.make_vec(ENV_ID, num_envs=N,
                                        vectorization_mode="vector_entry_point", **kw))
     return dummy, native
@@ -76,10 +79,10 @@ def test_same_transitions_as_dummy_vec_env(autoreset_mode):
     assert terminated >= 2 and truncated >= 4
 
 
-def test_vecnormalize_vecmonitor_and_attributes():
+def test_vecnormalize_episode_statistics_and_attributes():
     venv = make_sb3_vec_env(ENV_ID, N, seed=3, env_kwargs={"max_episode_steps": 10},
                             vec_env="native")
-    assert isinstance(venv, VecMonitor)
+    assert isinstance(venv, NativeVecEnv)
     norm = VecNormalize(venv, gamma=0.99)
     norm.reset()
     episodes = 0
@@ -93,6 +96,7 @@ def test_vecnormalize_vecmonitor_and_attributes():
     assert venv.get_attr("dt") == [0.02] * N
     assert norm.get_attr("num_envs", indices=[1]) == [N]
     assert venv.env_is_wrapped(gym.Wrapper) == [False] * N
+    assert venv.env_is_wrapped(Monitor) == [True] * N  # it reports Monitor's statistics
     with pytest.raises(ValueError, match="all 4 environments"):
         venv.set_attr("dt", 0.01, indices=[0])
     with pytest.raises(ValueError, match="no env_wrapper"):
@@ -116,10 +120,12 @@ def test_train_cli_runs_on_the_native_vec_env(tmp_path):
     from agents import train
 
     run = train.main([
-        "--env", ENV_ID, "--algo", "ppo", "--n-timesteps", "256", "--eval-freq", "0",
+        "--env", ENV_ID, "--algo", "ppo", "--n-timesteps", "256",
         "--save-freq", "0", "--log-folder", str(tmp_path), "--no-progress-bar", "--verbose", "0",
         "--env-kwargs", "max_episode_steps:50",
         "--hyperparams", "vec_env:native", "n_envs:4", "n_steps:64", "batch_size:128",
-        "n_epochs:1",
+        "n_epochs:1", "--eval-freq", "128", "--eval-episodes", "2",
     ])
     assert (run / "model.zip").is_file() and (run / "vecnormalize.pkl").is_file()
+    # the validation callback ran (its statistics synchronised with the native env's)
+    assert (run / "best" / "model.zip").is_file()

@@ -12,7 +12,9 @@
 and ``env.compute_reward(achieved_goal, desired_goal, info)`` (vectorised over leading axes;
 ``info`` one dict, a sequence of dicts or a dict of arrays) equals the step reward: the goal
 and success terms are recomputed from the goals (success also needs ``info["grasped"]``), the
-control and failure terms are taken from ``info`` (they do not depend on the goal). The goal
+control and failure terms are taken from ``info`` (they do not depend on the goal). SB3's
+``HerReplayBuffer`` keeps the infos only with ``replay_buffer_kwargs={"copy_info_dict":
+True}``; without them ``compute_reward`` raises a ValueError saying so. The goal
 is kept out of ``observation`` so that relabelling ``desired_goal`` (hindsight experience
 replay) leaves no stale copy of the old goal for the policy to read. ``achieved_goal`` is
 the object's pose: a blind policy must not read it (it is there for relabelling only; see
@@ -209,11 +211,18 @@ def _check_flags(goal_obs: Any, privileged_obs: Any) -> None:
 
 def _info_field(info: Any, key: str) -> np.ndarray:
     """``info[key]`` of one info dict or a dict of arrays, or stacked over a sequence of dicts."""
-    if isinstance(info, Mapping):
-        return np.asarray(info[key])
-    if isinstance(info, np.ndarray) or isinstance(info, Sequence):
-        arr = np.asarray(info, dtype=object)
-        return np.array([i[key] for i in arr.ravel()]).reshape(arr.shape)
+    try:
+        if isinstance(info, Mapping):
+            return np.asarray(info[key])
+        if isinstance(info, np.ndarray) or isinstance(info, Sequence):
+            arr = np.asarray(info, dtype=object)
+            return np.array([i[key] for i in arr.ravel()]).reshape(arr.shape)
+    except KeyError:
+        raise ValueError(
+            f"compute_reward needs info[{key!r}] (the step's info: grasped, reward_ctrl, "
+            "reward_failure); with SB3's HerReplayBuffer pass "
+            "replay_buffer_kwargs={'copy_info_dict': True}"
+        ) from None
     raise TypeError(f"info must be a dict or a sequence of dicts (got {type(info).__name__})")
 
 
