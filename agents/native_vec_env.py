@@ -186,15 +186,25 @@ class NativeVecEnv(VecEnv):
             )
         return idx
 
+    def _owner(self, attr_name: str) -> Any:
+        """The outermost of the vector env's wrappers (or the env itself) that has the
+        attribute (Gymnasium's vector wrappers do not forward attributes)."""
+        env = self.venv
+        while not hasattr(env, attr_name) and isinstance(env, gym.vector.VectorWrapper):
+            env = env.env
+        if not hasattr(env, attr_name):
+            raise AttributeError(f"the vector env has no attribute {attr_name!r}")
+        return env
+
     def get_attr(self, attr_name: str, indices: VecEnvIndices = None) -> list[Any]:
         """The vector env's attribute ``attr_name`` (shared), once per requested index."""
-        value = getattr(self.venv, attr_name)
+        value = getattr(self._owner(attr_name), attr_name)
         return [value for _ in self._get_indices(indices)]
 
     def set_attr(self, attr_name: str, value: Any, indices: VecEnvIndices = None) -> None:
         """Set ``attr_name`` on the vector env (shared by all environments; all indices)."""
         self._all(indices, "set_attr")
-        setattr(self.venv, attr_name, value)
+        setattr(self._owner(attr_name), attr_name, value)
 
     def env_method(
         self,
@@ -212,7 +222,7 @@ class NativeVecEnv(VecEnv):
             idx = self._all(indices, "env_method")
         else:
             idx = list(self._get_indices(indices))
-        result = getattr(self.venv, method_name)(*method_args, **method_kwargs)
+        result = getattr(self._owner(method_name), method_name)(*method_args, **method_kwargs)
         return [result for _ in idx]
 
     def env_is_wrapped(

@@ -94,6 +94,10 @@ def test_vecnormalize_episode_statistics_and_attributes():
                 episodes += 1
     assert episodes == 2 * N
     assert venv.get_attr("dt") == [0.02] * N
+    dict_venv = make_sb3_vec_env(ENV_ID, 2, 0, {"privileged_obs": True}, "native")
+    assert dict_venv.get_attr("dt") == [0.02] * 2  # through the Dict wrapper
+    with pytest.raises(AttributeError, match="no attribute 'nope'"):
+        dict_venv.get_attr("nope")
     assert norm.get_attr("num_envs", indices=[1]) == [N]
     assert venv.env_is_wrapped(gym.Wrapper) == [False] * N
     assert venv.env_is_wrapped(Monitor) == [True] * N  # it reports Monitor's statistics
