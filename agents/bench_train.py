@@ -47,8 +47,12 @@ def parse_args(argv: Sequence[str] | None = None) -> argparse.Namespace:
     for key, value in NATIVE_DEFAULTS.items():
         p.add_argument(f"--native-{key.replace('_', '-')}", type=int, default=value,
                        dest=f"native_{key}")
+    p.add_argument("--native-numba-threads", type=int, default=None,
+                   help="threads of the batched physics (default: numba's, one per core)")
     p.add_argument("--dummy-torch-threads", type=int, default=1)
     args = p.parse_args(argv)
+    if args.native_numba_threads is not None and args.native_numba_threads < 1:
+        p.error("--native-numba-threads must be >= 1")
     for key in ["steps", *(f"native_{k}" for k in NATIVE_DEFAULTS), "dummy_torch_threads"]:
         if getattr(args, key) < 1:
             p.error(f"--{key.replace('_', '-')} must be >= 1")
@@ -56,11 +60,13 @@ def parse_args(argv: Sequence[str] | None = None) -> argparse.Namespace:
 
 
 def run_ppo(env_id: str, hp: dict[str, Any], vec_env: str, steps: int, seed: int,
-            torch_threads: int) -> dict[str, Any]:
+            torch_threads: int, numba_threads: int | None = None) -> dict[str, Any]:
     """Build the VecEnv and PPO of ``hp`` (a ppo.yml entry) and time ``learn(steps)``.
 
+    ``numba_threads``: threads of the batched physics (None: numba's default, one per core).
     Returns a row of the table: settings, wall time (s) of ``learn`` and env steps per second.
     """
+    import numba
     import numpy as np
     import torch
     from stable_baselines3 import PPO
@@ -70,6 +76,7 @@ def run_ppo(env_id: str, hp: dict[str, Any], vec_env: str, steps: int, seed: int
     from agents.native_vec_env import make_sb3_vec_env
 
     torch.set_num_threads(torch_threads)
+    numba.set_num_threads(numba_threads or numba.config.NUMBA_NUM_THREADS)
     kwargs = algo_kwargs("ppo", hp)
     warm = make_sb3_vec_env(env_id, 2, seed, hp["env_kwargs"], vec_env,
                             env_wrapper=hp.get("env_wrapper"))
@@ -93,7 +100,7 @@ def run_ppo(env_id: str, hp: dict[str, Any], vec_env: str, steps: int, seed: int
         "n_steps": kwargs["n_steps"],
         "batch_size": kwargs["batch_size"],
         "n_epochs": kwargs["n_epochs"],
-        "torch_threads": torch_threads,
+        "threads": f"{torch_threads}/{numba.get_num_threads() if vec_env == 'native' else '-'}",
         "steps": done,
         "wall_s": wall,
         "fps": done / wall,
@@ -102,7 +109,7 @@ def run_ppo(env_id: str, hp: dict[str, Any], vec_env: str, steps: int, seed: int
 
 def table(rows: list[dict[str, Any]]) -> str:
     """Markdown table of the runs."""
-    cols = ["vec_env", "n_envs", "n_steps", "batch_size", "n_epochs", "torch_threads", "steps",
+    cols = ["vec_env", "n_envs", "n_steps", "batch_size", "n_epochs", "threads", "steps",
             "wall_s", "fps"]
     lines = ["| " + " | ".join(cols) + " |", "|" + "---|" * len(cols)]
     for r in rows:
@@ -130,9 +137,10 @@ def main(argv: Sequence[str] | None = None) -> float:
     rows = [
         run_ppo(args.env, hp, "dummy", args.steps, args.seed, args.dummy_torch_threads),
         run_ppo(args.env, native_hp, "native", args.steps, args.seed,
-                args.native_torch_threads),
+                args.native_torch_threads, args.native_numba_threads),
     ]
     print(table(rows))
+    print("threads = torch / numba (the batched physics of the native env)")
     print(f"load average after {os.getloadavg()[0]:.2f}")
     ratio = rows[1]["fps"] / rows[0]["fps"]
     print(f"native/dummy fps ratio: {ratio:.2f}")

@@ -71,14 +71,15 @@ def split_infos(infos: dict[str, Any], n: int) -> list[dict[str, Any]]:
             for i in np.flatnonzero(mask):
                 out[i][key] = nested[i]
             continue
-        for i in np.flatnonzero(mask):
-            item = value[i]
-            if isinstance(item, np.ndarray):
-                out[i][key] = item.copy() if item.ndim else item.item()
-            elif isinstance(item, np.generic):
-                out[i][key] = item.item()
-            else:
-                out[i][key] = item
+        value = np.asarray(value)
+        if value.dtype == object:
+            items = list(value)
+        elif value.ndim == 1:
+            items = value.tolist()  # Python scalars
+        else:
+            items = list(value.copy())  # rows of one private copy
+        for i in range(n) if mask.all() else np.flatnonzero(mask).tolist():
+            out[i][key] = items[i]
     return out
 
 
