@@ -564,7 +564,10 @@ class ModelPolicy:
         deterministic: bool = True,
     ) -> tuple[np.ndarray, Any]:
         """SB3 prediction on the normalised observation (recurrent state passed through)."""
-        obs = self.normalize(np.asarray(observation, dtype=np.float32))
+        if isinstance(observation, dict):  # Dict observations (goal_obs / privileged_obs)
+            obs = self.normalize({k: np.asarray(v) for k, v in observation.items()})
+        else:
+            obs = self.normalize(np.asarray(observation, dtype=np.float32))
         if self.recurrent:
             return self.model.predict(obs, state, episode_start, deterministic)
         action, _ = self.model.predict(obs, deterministic=deterministic)

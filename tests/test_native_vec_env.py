@@ -133,3 +133,18 @@ def test_train_cli_runs_on_the_native_vec_env(tmp_path):
     assert (run / "model.zip").is_file() and (run / "vecnormalize.pkl").is_file()
     # the validation callback ran (its statistics synchronised with the native env's)
     assert (run / "best" / "model.zip").is_file()
+
+
+def test_train_and_evaluate_an_asymmetric_agent_on_privileged_observations(tmp_path):
+    from agents import evaluate, train
+
+    run = train.main([
+        "--env", ENV_ID, "--algo", "ppo", "--n-timesteps", "256", "--eval-freq", "0",
+        "--save-freq", "0", "--log-folder", str(tmp_path), "--no-progress-bar", "--verbose", "0",
+        "--env-kwargs", "max_episode_steps:30", "privileged_obs:true",
+        "--hyperparams", "vec_env:native", "n_envs:4", "n_steps:64", "batch_size:128",
+        "n_epochs:1", "policy:AsymmetricPolicy",
+    ])
+    summary = evaluate.main(["--model", str(run), "--n-episodes", "2", "--no-plots",
+                             "--out", str(tmp_path / "eval")])
+    assert 0.0 <= summary["success_rate"] <= 1.0
