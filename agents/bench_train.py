@@ -76,12 +76,12 @@ def run_ppo(env_id: str, hp: dict[str, Any], vec_env: str, steps: int, seed: int
     from agents.native_vec_env import make_sb3_vec_env
 
     torch.set_num_threads(torch_threads)
-    numba.set_num_threads(numba_threads or numba.config.NUMBA_NUM_THREADS)
+    numba.set_num_threads(numba_threads or numba.config.NUMBA_NUM_THREADS)  # type: ignore[attr-defined]
     kwargs = algo_kwargs("ppo", hp)
     warm = make_sb3_vec_env(env_id, 2, seed, hp["env_kwargs"], vec_env,
                             env_wrapper=hp.get("env_wrapper"))
     warm.reset()  # compiles / loads the kernels outside the clock
-    warm.step(np.zeros((2, *warm.action_space.shape), dtype=np.float32))
+    warm.step(np.zeros((2, *np.shape(warm.action_space.sample())), dtype=np.float32))
     warm.close()
     env = make_sb3_vec_env(env_id, hp["n_envs"], seed, hp["env_kwargs"], vec_env,
                            env_wrapper=hp.get("env_wrapper"))

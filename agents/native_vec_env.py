@@ -68,7 +68,7 @@ def split_infos(infos: dict[str, Any], n: int) -> list[dict[str, Any]]:
         mask = infos.get(f"_{key}", np.ones(n, dtype=bool))
         if isinstance(value, dict):
             nested = split_infos(value, n)
-            for i in np.flatnonzero(mask):
+            for i in np.flatnonzero(mask).tolist():
                 out[i][key] = nested[i]
             continue
         value = np.asarray(value)
@@ -78,7 +78,8 @@ def split_infos(infos: dict[str, Any], n: int) -> list[dict[str, Any]]:
             items = value.tolist()  # Python scalars
         else:
             items = list(value.copy())  # rows of one private copy
-        for i in range(n) if mask.all() else np.flatnonzero(mask).tolist():
+        rows: Sequence[int] = range(n) if mask.all() else np.flatnonzero(mask).tolist()
+        for i in rows:
             out[i][key] = items[i]
     return out
 
@@ -108,7 +109,7 @@ class NativeVecEnv(VecEnv):
             raise ValueError(
                 "NativeVecEnv needs autoreset_mode NextStep or Disabled (got SameStep)"
             )
-        self.venv = venv
+        self.venv: Any = venv  # reset(seed=list) and reset_mask are SoftHandVectorEnv's
         self._actions: np.ndarray | None = None
         self._t0 = time.time()
         self._returns = np.zeros(venv.num_envs)
@@ -164,7 +165,8 @@ class NativeVecEnv(VecEnv):
             infos[i]["TimeLimit.truncated"] = bool(truncated[i] and not terminated[i])
         if dones.any():
             t = round(time.time() - self._t0, 6)
-            for i in np.flatnonzero(dones):
+            ended = np.flatnonzero(dones).tolist()
+            for i in ended:
                 infos[i]["terminal_observation"] = _row(obs, i)
                 infos[i]["episode"] = {"r": round(float(self._returns[i]), 6),
                                        "l": int(self._lengths[i]), "t": t}
@@ -172,7 +174,7 @@ class NativeVecEnv(VecEnv):
             self._lengths[dones] = 0
             new_obs, reset_info = self.venv.reset(options={"reset_mask": dones.copy()})
             reset_split = split_infos(reset_info, n)
-            for i in np.flatnonzero(dones):
+            for i in ended:
                 self.reset_infos[i] = reset_split[i]
             obs = new_obs
         return obs, np.asarray(rewards, dtype=np.float32), dones, infos
@@ -240,7 +242,7 @@ class NativeVecEnv(VecEnv):
         frames = self.venv.render()
         if frames is None:
             return [None] * self.num_envs
-        return list(frames)
+        return [np.asarray(frame) for frame in frames]
 
     def close(self) -> None:
         self.venv.close()

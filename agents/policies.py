@@ -125,6 +125,7 @@ class AsymmetricActorCriticPolicy(MultiInputActorCriticPolicy):
             resolve_keys(observation_space, critic_keys, tuple(observation_space.spaces)),
         )
         self._n_made = 0
+        self._dict_space = observation_space
         for key in ("features_extractor_class", "features_extractor_kwargs",
                     "share_features_extractor"):
             if key in kwargs:
@@ -136,10 +137,10 @@ class AsymmetricActorCriticPolicy(MultiInputActorCriticPolicy):
         """The actor's extractor on the first call, the critic's on the second."""
         keys = self._keys[min(self._n_made, 1)]
         self._n_made += 1
-        return KeyConcat(self.observation_space, keys)
+        return KeyConcat(self._dict_space, keys)
 
     def _build_mlp_extractor(self) -> None:
-        self.mlp_extractor = _SplitMlp(
+        self.mlp_extractor = _SplitMlp(  # type: ignore[assignment]
             self.pi_features_extractor.features_dim, self.vf_features_extractor.features_dim,
             self.net_arch, self.activation_fn, self.device,
         )
@@ -168,18 +169,19 @@ class BlindActorSACPolicy(SACMultiInputPolicy):
             resolve_keys(observation_space, actor_keys, ACTOR_KEYS),
             resolve_keys(observation_space, critic_keys, tuple(observation_space.spaces)),
         )
+        self._dict_space = observation_space
         for key in ("features_extractor_class", "features_extractor_kwargs",
                     "share_features_extractor"):
             if key in kwargs:
                 raise ValueError(f"{type(self).__name__} sets {key} itself")
-        super().__init__(observation_space, action_space, lr_schedule,
+        super().__init__(observation_space, action_space, lr_schedule,  # type: ignore[arg-type]
                          share_features_extractor=False, **kwargs)
 
     def make_actor(self, features_extractor: BaseFeaturesExtractor | None = None):
-        return super().make_actor(KeyConcat(self.observation_space, self._keys[0]))
+        return super().make_actor(KeyConcat(self._dict_space, self._keys[0]))
 
     def make_critic(self, features_extractor: BaseFeaturesExtractor | None = None):
-        return super().make_critic(KeyConcat(self.observation_space, self._keys[1]))
+        return super().make_critic(KeyConcat(self._dict_space, self._keys[1]))
 
     def _get_constructor_parameters(self) -> dict[str, Any]:
         data = super()._get_constructor_parameters()
@@ -191,10 +193,10 @@ class BlindActorSACPolicy(SACMultiInputPolicy):
 
 
 #: Policy aliases registered with SB3 on import.
-POLICY_ALIASES = {
+POLICY_ALIASES: dict[Any, dict[str, type]] = {
     PPO: {"AsymmetricPolicy": AsymmetricActorCriticPolicy},
     A2C: {"AsymmetricPolicy": AsymmetricActorCriticPolicy},
     SAC: {"BlindActorPolicy": BlindActorSACPolicy},
 }
 for _algo, _aliases in POLICY_ALIASES.items():
-    _algo.policy_aliases = {**_algo.policy_aliases, **_aliases}
+    _algo.policy_aliases = {**_algo.policy_aliases, **_aliases}  # type: ignore[attr-defined]

@@ -257,7 +257,8 @@ class _DictObservation(gym.Wrapper):
 
     def __init__(self, env: gym.Env, goal_obs: bool, privileged_obs: bool):
         super().__init__(env)
-        self.readout = DictReadout(env.unwrapped.config, goal_obs, privileged_obs)
+        base: Any = env.unwrapped
+        self.readout = DictReadout(base.config, goal_obs, privileged_obs)
         self.observation_space = self.readout.space()
 
     def _build(self, obs: np.ndarray) -> dict[str, np.ndarray]:
@@ -299,7 +300,8 @@ class VectorDictObservation(VectorWrapper):
         if AutoresetMode(env.metadata.get("autoreset_mode")) == AutoresetMode.SAME_STEP:
             raise ValueError("Dict observations on the vector env need autoreset NextStep or "
                              "Disabled (SameStep's final_obs is not converted)")
-        self.readout = DictReadout(env.unwrapped.config, goal_obs, privileged_obs)
+        base: Any = env.unwrapped
+        self.readout = DictReadout(base.config, goal_obs, privileged_obs)
         self.single_observation_space = self.readout.space()
         self.observation_space = batch_space(self.single_observation_space, env.num_envs)
 
