@@ -110,6 +110,15 @@ def test_vecnormalize_episode_statistics_and_attributes():
     norm.close()
 
 
+def test_images_one_per_env():
+    venv = make_sb3_vec_env(ENV_ID, 2, 0, {"render_mode": "rgb_array", "render_width": 64,
+                                           "render_height": 48}, "native")
+    venv.reset()
+    images = venv.get_images()
+    assert venv.render_mode == "rgb_array" and [i.shape for i in images] == [(48, 64, 3)] * 2
+    assert not np.array_equal(images[0], np.zeros_like(images[0]))
+
+
 def test_split_infos_masks_and_scalars():
     infos = {"a": np.array([1.0, 2.0]), "_a": np.array([True, False]),
              "r": np.array([None, "success"], dtype=object), "_r": np.array([False, True]),
