@@ -35,7 +35,10 @@ ALGOS: dict[str, tuple[str, str]] = {
 }
 
 #: Keys of a hyper-parameter entry that train.py consumes (everything else goes to the algorithm).
-SPECIAL_KEYS = ("n_envs", "n_timesteps", "policy", "normalize", "env_kwargs", "env_wrapper")
+#: ``vec_env`` (dummy | subproc | native) is ours: RL Zoo does not know it and takes the
+#: vectorisation from its ``--vec-env`` flag, so the shipped zoo-dialect entries leave it out.
+SPECIAL_KEYS = ("n_envs", "n_timesteps", "policy", "normalize", "env_kwargs", "env_wrapper",
+                "vec_env")
 #: Documented ranges of numeric algorithm keys (checked before the algorithm allocates its
 #: buffers): key -> (low, high, integer?).
 NUMERIC_RANGES: dict[str, tuple[float, float, bool]] = {

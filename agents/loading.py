@@ -236,7 +236,10 @@ class ModelPolicy:
 
     def _load_stats(self, trust_model: bool) -> Any:
         run = self.run
-        obs_dim = int(np.prod(self.model.observation_space.shape))
+        space = self.model.observation_space
+        obs_dim: int | dict[str, int] = (
+            {k: int(np.prod(v.shape)) for k, v in space.spaces.items()}
+            if hasattr(space, "spaces") else int(np.prod(space.shape)))
         if run.stats_npz is not None:
             try:
                 return ObsNormalizer(run.stats_npz, obs_dim)
@@ -290,7 +293,7 @@ class ModelPolicy:
                 raise UserError(f"{self.path}: the model's {name} has shape {want}, the env's "
                                 f"{got}")
 
-    def normalize(self, obs: np.ndarray) -> np.ndarray:
+    def normalize(self, obs: Any) -> Any:
         """Observation as the model saw it in training (VecNormalize, statistics frozen)."""
         if self.normalizer is None:
             return obs
@@ -298,13 +301,16 @@ class ModelPolicy:
 
     def predict(
         self,
-        observation: np.ndarray,
+        observation: Any,
         state: Any = None,
         episode_start: np.ndarray | None = None,
         deterministic: bool = True,
     ) -> tuple[np.ndarray, Any]:
         """SB3 prediction on the normalised observation (recurrent state passed through)."""
-        obs = self.normalize(np.asarray(observation, dtype=np.float32))
+        if isinstance(observation, dict):  # Dict observations (goal_obs / privileged_obs)
+            obs = self.normalize({k: np.asarray(v) for k, v in observation.items()})
+        else:
+            obs = self.normalize(np.asarray(observation, dtype=np.float32))
         if self.recurrent:
             return self.model.predict(obs, state, episode_start, deterministic)
         action, _ = self.model.predict(obs, deterministic=deterministic)

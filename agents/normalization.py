@@ -22,17 +22,29 @@ STATS_KEYS = ("obs_mean", "obs_var", "obs_count", "clip_obs", "epsilon", "norm_o
 
 
 def save_stats(vecnormalize: Any, path: str | Path) -> Path:
-    """Write the statistics of an SB3 ``VecNormalize`` (Box observations) to ``path`` (.npz)."""
+    """Write the statistics of an SB3 ``VecNormalize`` to ``path`` (.npz).
+
+    Box observations: ``obs_mean``, ``obs_var`` (obs_dim,), ``obs_count``. Dict observations:
+    the same three arrays per normalised key, named ``obs_mean.<key>`` etc., and
+    ``norm_obs_keys`` (the normalised keys, as a fixed-width unicode array, not pickled)."""
     rms = vecnormalize.obs_rms
+    arrays: dict[str, Any] = {}
     if isinstance(rms, dict):
-        raise TypeError("dict observations: statistics per key are not supported")
+        keys = sorted(rms)
+        for key in keys:
+            arrays[f"obs_mean.{key}"] = np.asarray(rms[key].mean, dtype=np.float64)
+            arrays[f"obs_var.{key}"] = np.asarray(rms[key].var, dtype=np.float64)
+            arrays[f"obs_count.{key}"] = np.float64(rms[key].count)
+        arrays["norm_obs_keys"] = np.array(keys, dtype=np.str_)
+    else:
+        arrays["obs_mean"] = np.asarray(rms.mean, dtype=np.float64)
+        arrays["obs_var"] = np.asarray(rms.var, dtype=np.float64)
+        arrays["obs_count"] = np.float64(rms.count)
     path = Path(path)
     with path.open("wb") as fh:  # np.savez would append .npz to other suffixes
         np.savez(
             fh,
-            obs_mean=np.asarray(rms.mean, dtype=np.float64),
-            obs_var=np.asarray(rms.var, dtype=np.float64),
-            obs_count=np.float64(rms.count),
+            **arrays,
             clip_obs=np.float64(vecnormalize.clip_obs),
             epsilon=np.float64(vecnormalize.epsilon),
             norm_obs=np.bool_(vecnormalize.norm_obs),
@@ -43,6 +55,19 @@ def save_stats(vecnormalize: Any, path: str | Path) -> Path:
     return path
 
 
+def _moments(arrays: dict[str, np.ndarray], suffix: str, path: str | Path,
+             size: int | None) -> tuple[np.ndarray, np.ndarray]:
+    """(mean, var) of one observation (or one Dict key, ``suffix = ".<key>"``), checked."""
+    mean = arrays["obs_mean" + suffix].astype(np.float64).reshape(-1)
+    var = arrays["obs_var" + suffix].astype(np.float64).reshape(-1)
+    if mean.shape != var.shape or np.any(var < 0):
+        raise ValueError(f"{path}: obs_mean{suffix}/obs_var{suffix} must have one shape, var >= 0")
+    if size is not None and mean.size != size:
+        raise ValueError(f"{path}: statistics of {mean.size} observations{suffix}, the model "
+                         f"has {size}")
+    return mean, var
+
+
 class ObsNormalizer:
     """Frozen observation normalisation read from a statistics file (:func:`save_stats`).
 
@@ -51,14 +76,21 @@ class ObsNormalizer:
     path : str or Path
         The ``.npz`` file. Raises ``ValueError`` if it is not a statistics file (missing or
         non-numeric arrays, non-finite values, negative variances, a pickled array).
-    obs_dim : int, optional
-        Observation size the statistics must have.
+    obs_dim : int or dict, optional
+        Observation size the statistics must have (Box), or key -> size (Dict observations:
+        every normalised key must be one of them).
     """
 
-    def __init__(self, path: str | Path, obs_dim: int | None = None):
+    def __init__(self, path: str | Path, obs_dim: int | dict[str, int] | None = None):
         try:
             with np.load(path, allow_pickle=False) as data:
-                arrays = {k: np.asarray(data[k]) for k in STATS_KEYS}
+                names = list(data.keys())
+                keys = ([str(k) for k in data["norm_obs_keys"]] if "norm_obs_keys" in names
+                        else None)
+                per_key = [f"{m}.{k}" for k in keys or () for m in ("obs_mean", "obs_var",
+                                                                   "obs_count")]
+                wanted = [k for k in STATS_KEYS if keys is None or not k.startswith("obs_")]
+                arrays = {k: np.asarray(data[k]) for k in wanted + per_key}
         except KeyError as exc:
             raise ValueError(f"{path}: missing array {exc}") from None
         except (OSError, ValueError) as exc:  # not an npz, or an object (pickled) array
@@ -66,22 +98,41 @@ class ObsNormalizer:
         for key, arr in arrays.items():
             if arr.dtype.kind not in "fbiu" or not np.all(np.isfinite(arr)):
                 raise ValueError(f"{path}: {key} must hold finite numbers")
-        self.mean = arrays["obs_mean"].astype(np.float64).reshape(-1)
-        self.var = arrays["obs_var"].astype(np.float64).reshape(-1)
-        if self.mean.shape != self.var.shape or np.any(self.var < 0):
-            raise ValueError(f"{path}: obs_mean/obs_var must have one shape, var >= 0")
-        if obs_dim is not None and self.mean.size != obs_dim:
-            raise ValueError(f"{path}: statistics of {self.mean.size} observations, the model "
-                             f"has {obs_dim}")
+        self.keys = keys
+        self.moments: dict[str, tuple[np.ndarray, np.ndarray]] = {}
+        if keys is None:
+            if isinstance(obs_dim, dict):
+                raise ValueError(f"{path}: statistics of a Box observation, the model has a "
+                                 "Dict observation")
+            self.mean, self.var = _moments(arrays, "", path, obs_dim)
+        else:
+            if obs_dim is not None and not isinstance(obs_dim, dict):
+                raise ValueError(f"{path}: statistics of a Dict observation, the model has a "
+                                 "Box observation")
+            for k in keys:
+                if obs_dim is not None and k not in obs_dim:
+                    raise ValueError(f"{path}: statistics of key {k!r}, which the model's "
+                                     f"observation lacks ({sorted(obs_dim)})")
+                self.moments[k] = _moments(arrays, f".{k}", path,
+                                           None if obs_dim is None else obs_dim[k])
         self.clip_obs = float(arrays["clip_obs"])
         self.epsilon = float(arrays["epsilon"])
         self.norm_obs = bool(arrays["norm_obs"])
         if self.clip_obs <= 0 or self.epsilon <= 0:
             raise ValueError(f"{path}: clip_obs and epsilon must be > 0")
 
-    def __call__(self, obs: np.ndarray) -> np.ndarray:
-        """Normalised observation(s), shape of ``obs`` (..., obs_dim), float32."""
-        if not self.norm_obs:
-            return np.asarray(obs)
-        z = (obs - self.mean) / np.sqrt(self.var + self.epsilon)
+    def _one(self, obs: np.ndarray, mean: np.ndarray, var: np.ndarray) -> np.ndarray:
+        z = (obs - mean) / np.sqrt(var + self.epsilon)
         return np.clip(z, -self.clip_obs, self.clip_obs).astype(np.float32)
+
+    def __call__(self, obs: Any) -> Any:
+        """Normalised observation(s): an array (..., obs_dim) -> float32 of its shape; a dict
+        -> a dict with the normalised keys replaced (the others as given)."""
+        if not self.norm_obs:
+            return obs if isinstance(obs, dict) else np.asarray(obs)
+        if self.keys is None:
+            return self._one(obs, self.mean, self.var)
+        if not isinstance(obs, dict):
+            raise TypeError("these statistics normalise Dict observations; got an array")
+        return {k: (self._one(v, *self.moments[k]) if k in self.moments else v)
+                for k, v in obs.items()}

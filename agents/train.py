@@ -41,9 +41,9 @@ from stable_baselines3.common.callbacks import CheckpointCallback, EvalCallback
 from stable_baselines3.common.utils import set_random_seed
 from stable_baselines3.common.vec_env import VecNormalize
 
+from agents import policies  # noqa: F401  (registers AsymmetricPolicy / BlindActorPolicy)
 from agents.cli import SEED_MAX, ArgumentParser, UserError, check_range, parse_kv, run_cli
 from agents.env_factory import (
-    VEC_ENVS,
     check_env_id,
     goal_seeds,
     make_env,
@@ -61,6 +61,7 @@ from agents.hyperparams import (
 )
 from agents.loading import BEST_MODEL
 from agents.metrics import error_score, final_errors, success_kwargs, summarize
+from agents.native_vec_env import SB3_VEC_ENVS, make_sb3_vec_env
 from agents.normalization import save_stats
 from agents.run_layout import save_vecnormalize, write_args, write_run_config
 from softhand_env.envs.signature import env_signature
@@ -83,7 +84,9 @@ def parse_args(argv: Sequence[str] | None = None) -> argparse.Namespace:
     p.add_argument("--log-folder", default="logs")
     p.add_argument("--run-name", default=None,
                    help="run directory name (default <env>_<k>, k = latest + 1 as in RL Zoo)")
-    p.add_argument("--vec-env", default="dummy", choices=VEC_ENVS)
+    p.add_argument("--vec-env", default=None, choices=SB3_VEC_ENVS,
+                   help="vectorisation (default: the entry's vec_env key, else dummy); native = "
+                        "the batched SoftHandVectorEnv through agents.native_vec_env")
     p.add_argument("--eval-freq", type=int, default=50_000,
                    help="evaluate every this many env steps (<= 0: never)")
     p.add_argument("--eval-episodes", type=int, default=20, help="validation goals, 1 .. 10000")
@@ -135,6 +138,10 @@ def resolve_config(args: argparse.Namespace) -> dict[str, Any]:
     hp["env_kwargs"] = {**hp["env_kwargs"], **env_over}
     if args.n_timesteps is not None:
         hp["n_timesteps"] = args.n_timesteps
+    vec_env = args.vec_env or hp.pop("vec_env", "dummy")
+    hp.pop("vec_env", None)
+    if vec_env not in SB3_VEC_ENVS:
+        raise UserError(f"vec_env must be one of {SB3_VEC_ENVS} (got {vec_env!r})")
     for key, low in (("n_envs", 1), ("n_timesteps", 1)):
         value = hp[key]
         if isinstance(value, bool) or not isinstance(value, int) or not low <= value <= 10**10:
@@ -153,7 +160,7 @@ def resolve_config(args: argparse.Namespace) -> dict[str, Any]:
                  "eval_seed": args.eval_seed, "success_kwargs": success_kwargs(args.env)},
         "device": args.device,
         "torch_threads": args.torch_threads,
-        "vec_env": args.vec_env,
+        "vec_env": vec_env,
         "versions": versions(),
         "command": "python -m agents.train " + shlex.join(sys.argv[1:]),
         "started": datetime.now(timezone.utc).isoformat(timespec="seconds"),
@@ -231,8 +238,8 @@ def build(config: dict[str, Any], verbose: int = 1) -> tuple[Any, Any]:
     kwargs = algo_kwargs(algo, hp)
     norm = normalize_kwargs(hp["normalize"])
     wrapper = hp.get("env_wrapper")
-    env = make_vec_env(env_id, hp["n_envs"], hp["env_kwargs"], seed, rec["vec_env"],
-                       env_wrapper=wrapper)
+    env = make_sb3_vec_env(env_id, hp["n_envs"], seed, hp["env_kwargs"], rec["vec_env"],
+                           env_wrapper=wrapper)
     ev = rec["eval"]
     eval_env = make_vec_env(
         env_id, 1, {**hp["env_kwargs"], **ev["success_kwargs"]}, None,
@@ -319,7 +326,7 @@ def main(argv: Sequence[str] | None = None) -> Path:
     write_args(run_dir, args.env, {
         "algo": args.algo, "seed": args.seed, "conf_file": rec["conf_file"],
         "n_timesteps": hp["n_timesteps"], "device": args.device,
-        "num_threads": args.torch_threads, "vec_env": args.vec_env,
+        "num_threads": args.torch_threads, "vec_env": rec["vec_env"],
         "eval_freq": args.eval_freq, "eval_episodes": args.eval_episodes,
         "save_freq": args.save_freq, "log_folder": str(args.log_folder)})
     write_run_config(run_dir, args.env, hp, rec)  # rewritten at the end (results, checksums)

@@ -14,13 +14,16 @@ id                          task         goal
 all with the entry point :class:`SoftHandEnv` (the task is a keyword), ``max_episode_steps``
 from ``configs/tasks/<task>.yaml``, ``reward_threshold`` (:func:`reward_threshold`) and the
 vector entry point :class:`SoftHandVectorEnv`
-(``gym.make_vec(id, num_envs=N, vectorization_mode="vector_entry_point")``). Registration
-imports only Gymnasium and PyYAML; the physics is imported when an environment is made.
+(``gym.make_vec(id, num_envs=N, vectorization_mode="vector_entry_point")``), both built by
+the factories of :mod:`.dict_obs`, which add Dict observations on ``goal_obs=True`` /
+``privileged_obs=True`` and otherwise return the env itself. Registration imports only
+Gymnasium and PyYAML; the physics is imported when an environment is made.
 
 Modules: :mod:`.softhand` (the env and its manual), :mod:`.vector` (batched env),
 :mod:`.transition` (the control step both run), :mod:`.tasks`, :mod:`.task_configs`,
 :mod:`.actions`, :mod:`.observation`, :mod:`.randomization`, :mod:`.start` (grasp phase),
-:mod:`.config`, :mod:`.rendering`.
+:mod:`.config`, :mod:`.rendering`, :mod:`.dict_obs` (goal-conditioned and privileged Dict
+observations).
 """
 
 from __future__ import annotations
@@ -35,8 +38,8 @@ ENV_IDS: dict[str, str] = {
     "SoftHandPose-v0": "pose",
 }
 
-ENTRY_POINT = "softhand_env.envs.softhand:SoftHandEnv"
-VECTOR_ENTRY_POINT = "softhand_env.envs.vector:SoftHandVectorEnv"
+ENTRY_POINT = "softhand_env.envs.dict_obs:make_env"
+VECTOR_ENTRY_POINT = "softhand_env.envs.dict_obs:make_vector_env"
 
 
 def reward_threshold(task_config: dict[str, Any]) -> float | None:

@@ -175,9 +175,19 @@ class GoalTask(Task):
         self.terminate_on_success = bool(terminate_on_success)
         self._ranges = np.array([t.goal_range for t in self.targets])
         self._obs_scales = np.array([t.obs_scale for t in self.targets])
+        #: Goals are drawn from ``goal_scale`` times the goal ranges (curriculum; 1 = as set).
+        self.goal_scale = 1.0
+
+    def set_goal_scale(self, scale: float) -> None:
+        """Draw goals from ``scale`` (in (0, 1]) times the goal ranges from the next reset on
+        (a curriculum hook; goals given through ``reset(options={"goal": ...})`` are kept)."""
+        if not (is_finite_real(scale) and 0.0 < scale <= 1.0):
+            raise ValueError(f"goal scale must be a number in (0, 1] (got {scale!r})")
+        self.goal_scale = float(scale)
 
     def sample_goal(self, rng: np.random.Generator) -> np.ndarray:
-        return rng.uniform(-self._ranges, self._ranges)
+        ranges = self._ranges * self.goal_scale
+        return rng.uniform(-ranges, ranges)
 
     def goal_observation(self, goal: np.ndarray) -> np.ndarray:
         scaled = np.asarray(goal, dtype=np.float64) / self._obs_scales
