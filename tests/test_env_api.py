@@ -423,20 +423,26 @@ def test_physical_failures_terminate_with_reason(setpoint_deg, reason):
 
 
 def test_nonfinite_state_rolls_back_and_terminates(monkeypatch):
-    from softhand_env.physics import kernel
+    from softhand_env.physics import hand, kernel
 
     env = gym.make("SoftHandReorient-v0").unwrapped
     env.reset(seed=0)
     before = env.physics.get_state()
-    real_advance = kernel.advance_batch
 
-    def poisoned(Y, U, PRM, n, ch_limit, DIAG, FLAGS):
-        real_advance(Y, U, PRM, n, ch_limit, DIAG, FLAGS)
-        Y[:] = np.nan  # what a blown-up integration leaves behind
-        FLAGS[:] = kernel.FLAG_NONFINITE
-        DIAG[:, 1] = np.nan
+    def poisoned(Y, U, PRM, TIME, n, ch_limit, dn_limit, base_limit):
+        # the real kernel, then what a blown-up integration leaves behind, then the real
+        # rollback and classification
+        y_prev = Y.copy()
+        flags = np.zeros(len(Y), dtype=np.int64)
+        diag = np.zeros((len(Y), 3))
+        kernel.advance_batch(Y, U, PRM, n, ch_limit, diag, flags)
+        Y[:] = np.nan
+        flags[:] = kernel.FLAG_NONFINITE
+        diag[:, 1] = np.nan
+        return (flags, diag, *hand._finish_step(flags, Y, y_prev, PRM, diag, TIME, ch_limit,
+                                                dn_limit, base_limit))
 
-    monkeypatch.setattr(kernel, "advance_batch", poisoned)
+    monkeypatch.setattr(hand, "_step_on_this_thread", poisoned)
     obs, reward, terminated, _, info = env.step(np.zeros(2, dtype=np.float32))
     assert terminated and info["termination_reason"] == "nonfinite_state"
     assert np.isfinite(obs).all() and np.isfinite(reward)
