@@ -488,3 +488,50 @@ def test_failing_grasp_raises_when_fixed_and_is_redrawn_when_randomised(monkeypa
         _, info = env.reset(seed=seed)
         assert info["grasped"] and info["deformation"][:2].max() < 0.01
     assert len(calls) > 15  # at least one draw was rejected and redrawn
+
+
+# ------------------------------------------------------------------ untrusted actions and options
+@pytest.mark.parametrize(
+    "action",
+    [
+        np.array([1 + 1j, 0.0]),
+        np.array(["a", "b"]),
+        np.array([np.datetime64("2024-01-01")] * 2),
+        np.ma.array([0.0, 0.0], mask=[True, False]),
+        {"a": 1},
+        [10**400, 0],
+    ],
+    ids=["complex", "str", "datetime", "masked", "dict", "huge-int"],
+)
+def test_non_real_actions_raise_type_error_naming_action(action):
+    env = gym.make("SoftHandReorient-v0")
+    env.reset(seed=0)
+    with pytest.raises(TypeError, match="action"):
+        env.step(action)
+
+
+def test_real_actions_of_any_real_kind_are_accepted():
+    env = gym.make("SoftHandReorient-v0")
+    env.reset(seed=0)
+    for action in (np.array([True, False]), np.array([0, 1], dtype=np.int8), [0.5, -0.5],
+                   np.array([0.1, 0.2], dtype=np.float16)):
+        env.step(action)
+
+
+@pytest.mark.parametrize(
+    "options,error,fragment",
+    [
+        ({"gaol": [0.0]}, ValueError, "unknown reset options \\['gaol'\\]; allowed: \\['goal'\\]"),
+        ("goal", TypeError, "reset options must be a dict"),
+        ({"goal": [1e300]}, ValueError, "outside the task's range"),
+        ({"goal": ["x"]}, ValueError, "finite numbers"),
+        ({"goal": [0.0, 0.0]}, ValueError, "1 finite numbers"),
+    ],
+)
+def test_reset_options_are_checked(options, error, fragment):
+    env = gym.make("SoftHandTranslate-v0")
+    with pytest.raises(error, match=fragment):
+        env.reset(seed=0, options=options)
+    # a goal at the edge of the range is accepted
+    _, info = env.reset(seed=0, options={"goal": [env.unwrapped.task.targets[0].goal_range]})
+    assert info["goal"][0] == env.unwrapped.task.targets[0].goal_range

@@ -26,6 +26,24 @@ from softhand_env.envs.start import start_episode
 from softhand_env.physics.hand import HandPhysics
 
 
+def reset_goal(options: Any, allowed: tuple[str, ...]) -> Any:
+    """The ``"goal"`` entry of ``reset(options=...)`` (None if absent), after checking that
+    ``options`` is None or a dict whose keys are all in ``allowed``.
+
+    Raises ``TypeError`` for non-dict options and ``ValueError`` naming the unknown keys and
+    the allowed ones. The goal's shape, finiteness and range are checked by
+    :func:`~softhand_env.envs.start.start_episode`.
+    """
+    if options is None:
+        return None
+    if not isinstance(options, dict):
+        raise TypeError(f"reset options must be a dict or None (got {type(options).__name__})")
+    unknown = sorted(str(k) for k in options if k not in allowed)
+    if unknown:
+        raise ValueError(f"unknown reset options {unknown}; allowed: {sorted(allowed)}")
+    return options.get("goal")
+
+
 def _generator(rngs: Sequence[np.random.Generator | None], i: Any) -> np.random.Generator:
     """Generator of environment ``i`` (seeded by every reset before it is used)."""
     rng = rngs[int(i)]
