@@ -535,3 +535,39 @@ def test_reset_options_are_checked(options, error, fragment):
     # a goal at the edge of the range is accepted
     _, info = env.reset(seed=0, options={"goal": [env.unwrapped.task.targets[0].goal_range]})
     assert info["goal"][0] == env.unwrapped.task.targets[0].goal_range
+
+
+@pytest.mark.parametrize(
+    "kwargs,fragment",
+    [
+        ({"history_len": 10**7}, "history_len must be in \\[1, 100\\]"),
+        ({"control_dt": 1e12}, "control_dt must be a number in \\[0, 1\\]"),
+        ({"grasp_duration": 1e300}, "grasp_duration must be a number in \\[0, 10\\]"),
+        ({"hand_overrides": {"dt": 1e-300}}, "substeps per control step is more than"),
+        ({"hand_overrides": {"dt": 1e-7}, "control_dt": 1e-3, "grasp_duration": 0.5},
+         "grasp_duration / dt"),
+        ({"max_delta_deg": 1e-200}, "max_delta_deg must be a number in \\[0.001, 30\\]"),
+        ({"goal_weight": 1e300}, "goal_weight must be a number in \\[0, 1e\\+06\\]"),
+        ({"ctrl_weight": 1e7}, "ctrl_weight"),
+        ({"goal_theta_range_deg": 1e9}, "goal_theta_range_deg must be a number in \\(0, 90\\]"),
+        ({"render_width": 10**6}, "render_width must be an int in \\[16, 4096\\]"),
+        ({"obs_noise": 1e300}, "obs_noise"),
+        ({"ch_limit": 1e300}, "ch_limit"),
+    ],
+)
+def test_keywords_have_finite_ranges_checked_before_anything_runs(kwargs, fragment):
+    with pytest.raises(ValueError, match=fragment):
+        gym.make("SoftHandReorient-v0", **kwargs)
+
+
+def test_reward_is_finite_at_the_edges_of_the_ranges():
+    weights = {k: 1e6 for k in ("goal_weight", "success_weight", "ctrl_weight",
+                                "failure_weight")}
+    env = gym.make("SoftHandReorient-v0", action_mode="absolute", max_delta_deg=1e-3,
+                   joint_range_deg=(-89.0, 89.0), **weights)
+    env.reset(seed=0)
+    for action in ([1.0, 1.0], [-1.0, -1.0], [1.0, -1.0]):
+        _, reward, terminated, _, info = env.step(np.array(action, dtype=np.float32))
+        assert math.isfinite(reward) and all(math.isfinite(info[t]) for t in GOAL_TERMS)
+        if terminated:
+            env.reset()

@@ -166,6 +166,15 @@ class SoftHandEnv(gym.Env):
 
     Every argument is a ``gym.make(id, **kwargs)`` keyword. ``None`` for a task keyword means
     the value in ``configs/tasks/<task>.yaml``; a task rejects keywords it does not use.
+    Every numeric keyword has a finite range, checked before anything is allocated or run
+    (``ValueError`` naming the keyword and its range): ``history_len`` [1, 100];
+    ``control_dt`` (0, 1] s and at most 100,000 substeps; ``grasp_duration`` [0, 10] s and at
+    most 1,000,000 substeps; ``max_delta_deg`` [0.001, 30]; ``reset_noise_deg`` [0, 10];
+    ``overcompression_ratio`` [0.001, 1]; ``ch_limit`` [1e-12, 1] m; ``base_tolerance``
+    [0, inf] (inf: off); ``rand_*`` [0, 1); ``obs_noise`` [0, 10); reward weights [0, 1e6];
+    ``goal_x_range_mm``, ``x_tolerance_mm`` (0, 100]; ``x_scale_mm`` (0, 1000];
+    ``goal_theta_range_deg``, ``theta_tolerance_deg`` (0, 90]; ``theta_scale_deg`` (0, 360];
+    ``render_width``, ``render_height`` [16, 4096]. Every reward is finite within them.
 
     | Parameter | Type | Default | Description |
     |---|---|---|---|
