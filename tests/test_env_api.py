@@ -423,20 +423,26 @@ def test_physical_failures_terminate_with_reason(setpoint_deg, reason):
 
 
 def test_nonfinite_state_rolls_back_and_terminates(monkeypatch):
-    from softhand_env.physics import kernel
+    from softhand_env.physics import hand, kernel
 
     env = gym.make("SoftHandReorient-v0").unwrapped
     env.reset(seed=0)
     before = env.physics.get_state()
-    real_advance = kernel.advance_batch
 
-    def poisoned(Y, U, PRM, n, ch_limit, DIAG, FLAGS):
-        real_advance(Y, U, PRM, n, ch_limit, DIAG, FLAGS)
-        Y[:] = np.nan  # what a blown-up integration leaves behind
-        FLAGS[:] = kernel.FLAG_NONFINITE
-        DIAG[:, 1] = np.nan
+    def poisoned(Y, U, PRM, TIME, n, ch_limit, dn_limit, base_limit):
+        # the real kernel, then what a blown-up integration leaves behind, then the real
+        # rollback and classification
+        y_prev = Y.copy()
+        flags = np.zeros(len(Y), dtype=np.int64)
+        diag = np.zeros((len(Y), 3))
+        kernel.advance_batch(Y, U, PRM, n, ch_limit, diag, flags)
+        Y[:] = np.nan
+        flags[:] = kernel.FLAG_NONFINITE
+        diag[:, 1] = np.nan
+        return (flags, diag, *hand._finish_step(flags, Y, y_prev, PRM, diag, TIME, ch_limit,
+                                                dn_limit, base_limit))
 
-    monkeypatch.setattr(kernel, "advance_batch", poisoned)
+    monkeypatch.setattr(hand, "_step_on_this_thread", poisoned)
     obs, reward, terminated, _, info = env.step(np.zeros(2, dtype=np.float32))
     assert terminated and info["termination_reason"] == "nonfinite_state"
     assert np.isfinite(obs).all() and np.isfinite(reward)
@@ -482,3 +488,86 @@ def test_failing_grasp_raises_when_fixed_and_is_redrawn_when_randomised(monkeypa
         _, info = env.reset(seed=seed)
         assert info["grasped"] and info["deformation"][:2].max() < 0.01
     assert len(calls) > 15  # at least one draw was rejected and redrawn
+
+
+# ------------------------------------------------------------------ untrusted actions and options
+@pytest.mark.parametrize(
+    "action",
+    [
+        np.array([1 + 1j, 0.0]),
+        np.array(["a", "b"]),
+        np.array([np.datetime64("2024-01-01")] * 2),
+        np.ma.array([0.0, 0.0], mask=[True, False]),
+        {"a": 1},
+        [10**400, 0],
+    ],
+    ids=["complex", "str", "datetime", "masked", "dict", "huge-int"],
+)
+def test_non_real_actions_raise_type_error_naming_action(action):
+    env = gym.make("SoftHandReorient-v0")
+    env.reset(seed=0)
+    with pytest.raises(TypeError, match="action"):
+        env.step(action)
+
+
+def test_real_actions_of_any_real_kind_are_accepted():
+    env = gym.make("SoftHandReorient-v0")
+    env.reset(seed=0)
+    for action in (np.array([True, False]), np.array([0, 1], dtype=np.int8), [0.5, -0.5],
+                   np.array([0.1, 0.2], dtype=np.float16)):
+        env.step(action)
+
+
+@pytest.mark.parametrize(
+    "options,error,fragment",
+    [
+        ({"gaol": [0.0]}, ValueError, "unknown reset options \\['gaol'\\]; allowed: \\['goal'\\]"),
+        ("goal", TypeError, "reset options must be a dict"),
+        ({"goal": [1e300]}, ValueError, "outside the task's range"),
+        ({"goal": ["x"]}, ValueError, "finite numbers"),
+        ({"goal": [0.0, 0.0]}, ValueError, "1 finite numbers"),
+    ],
+)
+def test_reset_options_are_checked(options, error, fragment):
+    env = gym.make("SoftHandTranslate-v0")
+    with pytest.raises(error, match=fragment):
+        env.reset(seed=0, options=options)
+    # a goal at the edge of the range is accepted
+    _, info = env.reset(seed=0, options={"goal": [env.unwrapped.task.targets[0].goal_range]})
+    assert info["goal"][0] == env.unwrapped.task.targets[0].goal_range
+
+
+@pytest.mark.parametrize(
+    "kwargs,fragment",
+    [
+        ({"history_len": 10**7}, "history_len must be in \\[1, 100\\]"),
+        ({"control_dt": 1e12}, "control_dt must be a number in \\[0, 1\\]"),
+        ({"grasp_duration": 1e300}, "grasp_duration must be a number in \\[0, 10\\]"),
+        ({"hand_overrides": {"dt": 1e-300}}, "substeps per control step is more than"),
+        ({"hand_overrides": {"dt": 1e-7}, "control_dt": 1e-3, "grasp_duration": 0.5},
+         "grasp_duration / dt"),
+        ({"max_delta_deg": 1e-200}, "max_delta_deg must be a number in \\[0.001, 30\\]"),
+        ({"goal_weight": 1e300}, "goal_weight must be a number in \\[0, 1e\\+06\\]"),
+        ({"ctrl_weight": 1e7}, "ctrl_weight"),
+        ({"goal_theta_range_deg": 1e9}, "goal_theta_range_deg must be a number in \\(0, 90\\]"),
+        ({"render_width": 10**6}, "render_width must be an int in \\[16, 4096\\]"),
+        ({"obs_noise": 1e300}, "obs_noise"),
+        ({"ch_limit": 1e300}, "ch_limit"),
+    ],
+)
+def test_keywords_have_finite_ranges_checked_before_anything_runs(kwargs, fragment):
+    with pytest.raises(ValueError, match=fragment):
+        gym.make("SoftHandReorient-v0", **kwargs)
+
+
+def test_reward_is_finite_at_the_edges_of_the_ranges():
+    weights = {k: 1e6 for k in ("goal_weight", "success_weight", "ctrl_weight",
+                                "failure_weight")}
+    env = gym.make("SoftHandReorient-v0", action_mode="absolute", max_delta_deg=1e-3,
+                   joint_range_deg=(-89.0, 89.0), **weights)
+    env.reset(seed=0)
+    for action in ([1.0, 1.0], [-1.0, -1.0], [1.0, -1.0]):
+        _, reward, terminated, _, info = env.step(np.array(action, dtype=np.float32))
+        assert math.isfinite(reward) and all(math.isfinite(info[t]) for t in GOAL_TERMS)
+        if terminated:
+            env.reset()

@@ -150,3 +150,47 @@ def test_vector_rgb_frames():
     assert len(frames) == 2 and frames[0].shape == (48, 64, 3) and frames[0].dtype == np.uint8
     with pytest.raises(ValueError, match="render_mode"):
         SoftHandVectorEnv(num_envs=2, render_mode="human")
+
+
+def test_step_before_reset_raises_reset_needed_like_sync():
+    from gymnasium.error import ResetNeeded
+
+    native = SoftHandVectorEnv(num_envs=2, task="reorient")
+    sync = gym.make_vec("SoftHandReorient-v0", num_envs=2, vectorization_mode="sync")
+    for envs in (native, sync):
+        with pytest.raises(ResetNeeded):
+            envs.step(np.zeros((2, 2), dtype=np.float32))
+    # a partial first reset is not enough either
+    native.reset(seed=0, options={"reset_mask": np.array([True, False])})
+    with pytest.raises(ResetNeeded):
+        native.step(np.zeros((2, 2), dtype=np.float32))
+    native.reset(seed=0)
+    native.step(np.zeros((2, 2), dtype=np.float32))
+
+
+def test_goal_option_applies_to_every_env_like_sync_and_per_env_rows():
+    native = gym.make_vec("SoftHandTranslate-v0", num_envs=2,
+                          vectorization_mode="vector_entry_point")
+    sync = gym.make_vec("SoftHandTranslate-v0", num_envs=2, vectorization_mode="sync")
+    o1, i1 = native.reset(seed=3, options={"goal": [0.004]})
+    o2, i2 = sync.reset(seed=3, options={"goal": [0.004]})
+    np.testing.assert_array_equal(o1, o2)
+    np.testing.assert_array_equal(i1["goal"], i2["goal"])
+    assert i1["goal"].ravel().tolist() == [0.004, 0.004]
+    a = np.random.default_rng(0).uniform(-1, 1, (2, 2)).astype(np.float32)
+    np.testing.assert_array_equal(native.step(a)[0], sync.step(a)[0])
+    _, info = native.reset(seed=3, options={"goal": [[0.004], [-0.002]]})
+    assert info["goal"].ravel().tolist() == [0.004, -0.002]
+    with pytest.raises(ValueError, match="unknown reset options"):
+        native.reset(options={"gaol": [0.0]})
+    with pytest.raises(ValueError, match="shape"):
+        native.reset(options={"goal": [[0.0], [0.0], [0.0]]})
+
+
+def test_native_vector_env_rejects_non_real_actions():
+    native = SoftHandVectorEnv(num_envs=2, task="reorient")
+    native.reset(seed=0)
+    with pytest.raises(TypeError, match="action"):
+        native.step(np.array([[1 + 1j, 0], [0, 0]]))
+    with pytest.raises(ValueError, match="action"):
+        native.step(np.zeros((3, 2), dtype=np.float32))

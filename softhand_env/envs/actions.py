@@ -121,6 +121,34 @@ class ActionMap:
         return u, (float(ctrl[0]) if previous.ndim == 1 else ctrl)
 
 
+def action_array(action: Any, shape: tuple[int, ...]) -> np.ndarray:
+    """``action`` as a float32/float64 array of ``shape``, or an error naming ``action``.
+
+    Accepted: real numeric arrays or sequences (bool, int, float kinds). Raises ``TypeError``
+    for anything else (complex, strings, dates, objects, masked arrays, dicts, ints too large
+    for a float) and ``ValueError`` for a wrong shape; NaN/inf are rejected by
+    :meth:`ActionMap.setpoints`.
+    """
+    if isinstance(action, np.ma.MaskedArray):
+        raise TypeError("action must be a plain array of real numbers (got a masked array)")
+    try:
+        a = np.asarray(action)
+    except (TypeError, ValueError, OverflowError):
+        raise TypeError(
+            f"action must be an array of real numbers (got {type(action).__name__})"
+        ) from None
+    if a.dtype.kind not in "biuf":
+        raise TypeError(
+            f"action must hold real numbers (bool, int or float), got dtype {a.dtype} "
+            f"({type(action).__name__})"
+        )
+    if a.shape != shape:
+        raise ValueError(f"action must have shape {shape} (got {a.shape})")
+    if a.dtype != np.float32 and a.dtype != np.float64:
+        a = a.astype(np.float64)
+    return a
+
+
 @njit(cache=True)
 def _map_setpoints(a, prev, kind, max_delta, mid, half, low, high, u, ctrl):
     """Set-points u and control costs ctrl for flattened (2N,) actions; False on NaN/inf.

@@ -23,6 +23,16 @@ from softhand_env.envs.randomization import PRESET, Randomization
 from softhand_env.envs.tasks import TASK_KWARGS, Task, make_task
 from softhand_env.physics.params import HandParams, is_finite_real, load_hand_params
 
+#: Upper bounds of the environment keywords, checked before anything is allocated or run
+#: (with the other ranges, each ValueError names the keyword and its range): control period
+#: (s), grasp phase (s), RK4 substeps per control step and per grasp phase (bounding the
+#: hand's dt from below), frame size (px).
+MAX_CONTROL_DT = 1.0
+MAX_GRASP_DURATION = 10.0
+MAX_SUBSTEPS = 100_000
+MAX_GRASP_SUBSTEPS = 1_000_000
+MAX_RENDER_SIZE = 4096
+
 #: Allowed ``render_mode`` values.
 RENDER_MODES = ("human", "rgb_array")
 
@@ -129,27 +139,43 @@ def build_config(options: EnvOptions) -> EnvConfig:
             f"grasp_setpoint_deg must lie within joint_range_deg {list(joint_range)} "
             f"(got {o.grasp_setpoint_deg!r})"
         )
-    control_dt = _number("control_dt", o.control_dt, 0.0)
+    control_dt = _number("control_dt", o.control_dt, 0.0, MAX_CONTROL_DT)
+    if control_dt / params.dt > MAX_SUBSTEPS:
+        raise ValueError(
+            f"control_dt / dt = {control_dt / params.dt:.3g} substeps per control step is more "
+            f"than {MAX_SUBSTEPS:,}: raise the hand's dt or lower control_dt"
+        )
     n_substeps = round(control_dt / params.dt)
     if n_substeps < 1 or abs(n_substeps * params.dt - control_dt) > 1e-9:
         raise ValueError(
             f"control_dt must be a positive multiple of the RK4 substep {params.dt:g} s "
             f"(got {o.control_dt!r})"
         )
-    grasp_duration = _number("grasp_duration", o.grasp_duration, 0.0)
+    grasp_duration = _number("grasp_duration", o.grasp_duration, 0.0, MAX_GRASP_DURATION)
+    if grasp_duration / params.dt > MAX_GRASP_SUBSTEPS:
+        raise ValueError(
+            f"grasp_duration / dt = {grasp_duration / params.dt:.3g} substeps is more than "
+            f"{MAX_GRASP_SUBSTEPS:,}: raise the hand's dt or shorten grasp_duration"
+        )
     n_grasp = round(grasp_duration / params.dt)
     if abs(n_grasp * params.dt - grasp_duration) > 1e-9:
         raise ValueError(
             f"grasp_duration must be a multiple of the RK4 substep {params.dt:g} s "
             f"(got {o.grasp_duration!r})"
         )
-    if o.render_mode is not None and o.render_mode not in RENDER_MODES:
+    if o.render_mode is not None and (
+        not isinstance(o.render_mode, str) or o.render_mode not in RENDER_MODES
+    ):
         raise ValueError(
             f"render_mode must be None or one of {RENDER_MODES} (got {o.render_mode!r})"
         )
     for name, value in (("render_width", o.render_width), ("render_height", o.render_height)):
-        if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 16:
-            raise ValueError(f"{name} must be an int >= 16 (got {value!r})")
+        if (
+            isinstance(value, bool)
+            or not isinstance(value, (int, np.integer))
+            or not 16 <= value <= MAX_RENDER_SIZE
+        ):
+            raise ValueError(f"{name} must be an int in [16, {MAX_RENDER_SIZE}] (got {value!r})")
     task_obj = make_task(o.task, **task_kw)
     return EnvConfig(
         task=task_obj,
@@ -157,7 +183,7 @@ def build_config(options: EnvOptions) -> EnvConfig:
         actions=ActionMap(
             o.action_mode,
             _flag("normalize_action", o.normalize_action),
-            _number("max_delta_deg", o.max_delta_deg, 0.0),
+            _number("max_delta_deg", o.max_delta_deg, 1e-3, 30.0),
             joint_range,
         ),
         layout=ObservationLayout(
@@ -170,7 +196,7 @@ def build_config(options: EnvOptions) -> EnvConfig:
         reset_noise=math.radians(_number("reset_noise_deg", o.reset_noise_deg, 0.0, 10.0)),
         randomization=Randomization.resolve(_flag("randomize", o.randomize), **rand_kw),
         dn_limit=_number("overcompression_ratio", o.overcompression_ratio, 1e-3, 1.0) * params.a,
-        ch_limit=_number("ch_limit", o.ch_limit, 1e-12),
+        ch_limit=_number("ch_limit", o.ch_limit, 1e-12, 1.0),
         base_limit=1.0 + _tolerance("base_tolerance", o.base_tolerance),
         render_mode=o.render_mode,
         render_size=(int(o.render_width), int(o.render_height)),

@@ -46,6 +46,9 @@ POSITION_SCALE = 0.03
 #: reached only by PID torque spikes above 1000 N m or a diverging state).
 OBS_BOUND = 100.0
 
+#: Largest ``history_len`` (frames): bounds the observation size before anything is allocated.
+MAX_HISTORY = 100
+
 PROPRIO_NAMES = (
     "theta_1",
     "theta_2",
@@ -118,9 +121,11 @@ class ObservationLayout:
         if obs_mode not in OBS_MODES:
             raise ValueError(f"obs_mode must be one of {OBS_MODES} (got {obs_mode!r})")
         if isinstance(history_len, bool) or not isinstance(history_len, (int, np.integer)):
-            raise ValueError(f"history_len must be an int >= 1 (got {history_len!r})")
-        if history_len < 1:
-            raise ValueError(f"history_len must be >= 1 (got {history_len!r})")
+            raise ValueError(
+                f"history_len must be an int in [1, {MAX_HISTORY}] (got {history_len!r})"
+            )
+        if not 1 <= history_len <= MAX_HISTORY:
+            raise ValueError(f"history_len must be in [1, {MAX_HISTORY}] (got {history_len!r})")
         self.tactile = obs_mode == "proprio_tactile"
         self.history_len = int(history_len)
         frame = PROPRIO_NAMES + (TACTILE_NAMES if self.tactile else ())

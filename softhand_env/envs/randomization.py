@@ -12,7 +12,6 @@ noise added to each observation frame (in the scaled units of the observation).
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -62,7 +61,7 @@ class Randomization:
                 raise TypeError(f"unknown randomisation keyword {key!r}")
             if value is None:
                 value = PRESET[key] if randomize else 0.0
-            high = 1.0 if key != "obs_noise" else math.inf
+            high = 1.0 if key != "obs_noise" else 10.0
             if not (is_finite_real(value) and 0.0 <= value < high):
                 raise ValueError(f"{key} must be a number in [0, {high}) (got {value!r})")
             out[key] = float(value)

@@ -7,10 +7,11 @@ from typing import TYPE_CHECKING, Any
 import gymnasium as gym
 import numpy as np
 
+from softhand_env.envs.actions import action_array
 from softhand_env.envs.config import RENDER_MODES, build_config
 from softhand_env.envs.observation import observe_rows
 from softhand_env.envs.options import EnvOptions
-from softhand_env.envs.transition import EpisodeBatch
+from softhand_env.envs.transition import EpisodeBatch, reset_goal
 from softhand_env.physics.hand import HandPhysics
 
 if TYPE_CHECKING:
@@ -65,7 +66,8 @@ class SoftHandEnv(gym.Env):
     ``Box(low, high, (2,), float32)`` with the joint range in rad and the action *is* the
     set-point pair in radians (used by scripted replay; the float64 values passed are used
     unrounded). Out-of-range actions are clipped (to [-1, 1], then set-points to the joint
-    range); NaN or inf raise ``ValueError``.
+    range); NaN or inf raise ``ValueError``, as does a wrong shape; anything but real numbers
+    (bool, int, float: complex, strings, dates, objects, masked arrays) raises ``TypeError``.
 
     ## Observation Space
 
@@ -118,7 +120,9 @@ class SoftHandEnv(gym.Env):
     ``reset`` raises :class:`~softhand_env.physics.PhysicsError` if the grasp phase itself ends
     in one of the failures of Episode End (e.g. ``grasp_setpoint_deg=(12, 12)`` over-compresses
     the fingertips; every draw failing with randomisation): that configuration cannot start
-    an episode. ``reset(options={"goal": g})`` sets the goal (SI units) instead.
+    an episode. ``reset(options={"goal": g})`` sets the goal (SI units) instead; it must lie
+    within the task's goal range (``ValueError`` otherwise). ``options`` must be None or a
+    dict (``TypeError``) whose only key is ``"goal"`` (``ValueError`` listing the allowed keys).
 
     ## Episode End
 
@@ -162,6 +166,15 @@ class SoftHandEnv(gym.Env):
 
     Every argument is a ``gym.make(id, **kwargs)`` keyword. ``None`` for a task keyword means
     the value in ``configs/tasks/<task>.yaml``; a task rejects keywords it does not use.
+    Every numeric keyword has a finite range, checked before anything is allocated or run
+    (``ValueError`` naming the keyword and its range): ``history_len`` [1, 100];
+    ``control_dt`` (0, 1] s and at most 100,000 substeps; ``grasp_duration`` [0, 10] s and at
+    most 1,000,000 substeps; ``max_delta_deg`` [0.001, 30]; ``reset_noise_deg`` [0, 10];
+    ``overcompression_ratio`` [0.001, 1]; ``ch_limit`` [1e-12, 1] m; ``base_tolerance``
+    [0, inf] (inf: off); ``rand_*`` [0, 1); ``obs_noise`` [0, 10); reward weights [0, 1e6];
+    ``goal_x_range_mm``, ``x_tolerance_mm`` (0, 100]; ``x_scale_mm`` (0, 1000];
+    ``goal_theta_range_deg``, ``theta_tolerance_deg`` (0, 90]; ``theta_scale_deg`` (0, 360];
+    ``render_width``, ``render_height`` [16, 4096]. Every reward is finite within them.
 
     | Parameter | Type | Default | Description |
     |---|---|---|---|
@@ -315,7 +328,7 @@ class SoftHandEnv(gym.Env):
         self, *, seed: int | None = None, options: dict[str, Any] | None = None
     ) -> tuple[np.ndarray, dict[str, Any]]:
         super().reset(seed=seed)
-        goal = options.get("goal") if options else None
+        goal = reset_goal(options, ("goal",))
         batch = self._batch
         batch.start(0, self.np_random, goal)
         batch.finish_reset(_ONE, (self.np_random,))
@@ -326,9 +339,7 @@ class SoftHandEnv(gym.Env):
 
     # ------------------------------------------------------------------------------- step
     def step(self, action: np.ndarray) -> tuple[np.ndarray, float, bool, bool, dict[str, Any]]:
-        a = np.asarray(action)
-        if a.shape != (2,):
-            raise ValueError(f"action must have shape (2,) (got {a.shape})")
+        a = action_array(action, (2,))
         batch = self._batch
         reward, terminated = batch.step(a.reshape(1, 2), (self.np_random,))
         info = batch.info(0)

@@ -137,7 +137,9 @@ def start_episode(
     rng : numpy Generator
         The environment's ``np_random``.
     goal : array_like, optional
-        Goal to use instead of the sampled one (still sampled, to keep the stream aligned).
+        Goal to use instead of the sampled one (still sampled, to keep the stream aligned);
+        ``ValueError`` unless it has one finite entry per target within the task's goal
+        range (``goal_x_range_mm`` / ``goal_theta_range_deg``, in SI units).
     """
     fixed = not (cfg.randomization.params_active or cfg.reset_noise > 0)
     for attempt in range(1 if fixed else MAX_DRAWS):
@@ -158,7 +160,16 @@ def start_episode(
     if goal is None:
         goal = sampled
     else:
-        goal = np.asarray(goal, dtype=np.float64).reshape(-1)
+        try:
+            goal = np.asarray(goal, dtype=np.float64).reshape(-1)
+        except (TypeError, ValueError, OverflowError):
+            raise ValueError(f"goal must be {sampled.size} finite numbers (SI units)") from None
         if goal.shape != sampled.shape or not np.isfinite(goal).all():
             raise ValueError(f"goal must be {sampled.size} finite numbers (SI units)")
+        for target, g in zip(cfg.task.targets, goal, strict=True):
+            if abs(g) > target.goal_range:
+                raise ValueError(
+                    f"goal {target.name} = {float(g)!r} is outside the task's range "
+                    f"[-{target.goal_range:g}, {target.goal_range:g}] (SI units)"
+                )
     return EpisodeStart(params, u0, goal, y)

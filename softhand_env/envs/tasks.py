@@ -55,6 +55,18 @@ TASK_KWARGS = (
 POSE_X = 0
 POSE_THETA = 2
 
+#: Upper bound of every reward weight: with max_delta_deg >= 1e-3 every reward stays finite.
+MAX_WEIGHT = 1e6
+#: Upper bounds (exclusive lower bound 0) of the goal-task keywords, in their units (mm, deg).
+TARGET_RANGES = {
+    "goal_x_range_mm": 100.0,
+    "x_tolerance_mm": 100.0,
+    "x_scale_mm": 1000.0,
+    "goal_theta_range_deg": 90.0,
+    "theta_tolerance_deg": 90.0,
+    "theta_scale_deg": 360.0,
+}
+
 #: Reward term names of goal tasks, in summation order.
 GOAL_TERMS = ("reward_goal", "reward_success", "reward_ctrl", "reward_failure")
 
@@ -164,8 +176,8 @@ class GoalTask(Task):
             ("ctrl_weight", ctrl_weight),
             ("failure_weight", failure_weight),
         ):
-            if not (is_finite_real(value) and value >= 0):
-                raise ValueError(f"{key} must be a finite number >= 0 (got {value!r})")
+            if not (is_finite_real(value) and 0 <= value <= MAX_WEIGHT):
+                raise ValueError(f"{key} must be a number in [0, {MAX_WEIGHT:g}] (got {value!r})")
         self.name = name
         self.targets = tuple(targets)
         self.goal_weight = float(goal_weight)
@@ -244,9 +256,9 @@ def make_task(task: str, **overrides: Any) -> Task:
         return NoTask()
 
     def positive(key: str) -> float:
-        value = cfg[key]
-        if not (is_finite_real(value) and value > 0):
-            raise ValueError(f"{key} must be a finite number > 0 (got {value!r})")
+        value, high = cfg[key], TARGET_RANGES[key]
+        if not (is_finite_real(value) and 0 < value <= high):
+            raise ValueError(f"{key} must be a number in (0, {high:g}] (got {value!r})")
         return float(value)
 
     if not isinstance(cfg["terminate_on_success"], (bool, np.bool_)):

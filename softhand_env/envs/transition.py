@@ -26,6 +26,24 @@ from softhand_env.envs.start import start_episode
 from softhand_env.physics.hand import HandPhysics
 
 
+def reset_goal(options: Any, allowed: tuple[str, ...]) -> Any:
+    """The ``"goal"`` entry of ``reset(options=...)`` (None if absent), after checking that
+    ``options`` is None or a dict whose keys are all in ``allowed``.
+
+    Raises ``TypeError`` for non-dict options and ``ValueError`` naming the unknown keys and
+    the allowed ones. The goal's shape, finiteness and range are checked by
+    :func:`~softhand_env.envs.start.start_episode`.
+    """
+    if options is None:
+        return None
+    if not isinstance(options, dict):
+        raise TypeError(f"reset options must be a dict or None (got {type(options).__name__})")
+    unknown = sorted(str(k) for k in options if k not in allowed)
+    if unknown:
+        raise ValueError(f"unknown reset options {unknown}; allowed: {sorted(allowed)}")
+    return options.get("goal")
+
+
 def _generator(rngs: Sequence[np.random.Generator | None], i: Any) -> np.random.Generator:
     """Generator of environment ``i`` (seeded by every reset before it is used)."""
     rng = rngs[int(i)]
@@ -147,10 +165,12 @@ class EpisodeBatch:
             )
         return self.task.evaluate(tuple(pose.T), self._goal_cols, ctrl, failed, grasped)
 
-    def _frames(self) -> np.ndarray:
-        """The newest observation frame of every environment, float32 (N, frame_size)."""
+    def _frames(self, out: np.ndarray | None = None) -> np.ndarray:
+        """The newest observation frame of every environment, float32 (N, frame_size), written
+        into the first frame_size columns of ``out`` if given."""
         r = self._r
-        out = np.empty((self.num_envs, self.cfg.layout.frame_size), dtype=np.float32)
+        if out is None:
+            out = np.empty((self.num_envs, self.cfg.layout.frame_size), dtype=np.float32)
         observe_rows(
             r.finger_angles,
             r.finger_velocities,
@@ -186,7 +206,7 @@ class EpisodeBatch:
         terminated : ndarray of bool, shape (N,)
         """
         cfg, n = self.cfg, self.num_envs
-        u, ctrl = cfg.actions.setpoints(actions, self.physics.setpoint.reshape(n, 2))
+        u, ctrl = cfg.actions.setpoints(actions, self._r.setpoint)  # the last commanded
         status = self.physics.step(u, cfg.n_substeps, strict=False, skip=skip).hands
         failed, grasped = status.failed, status.grasped
         r = self._r = self.physics.readouts()
@@ -208,7 +228,7 @@ class EpisodeBatch:
         f, h = layout.frame_size, layout.history_size
         if h > f:
             self.obs[:, f:h] = self.obs[:, : h - f]
-        self.obs[:, :f] = self._frames()
+        self._frames(self.obs)
         noise = cfg.randomization.obs_noise
         if noise > 0:
             rows = range(n) if skip is None else np.flatnonzero(~skip)
@@ -232,10 +252,24 @@ class EpisodeBatch:
     def info(self, i: int = 0) -> dict[str, Any]:
         """``info`` of environment ``i`` as a single environment returns it: the row i of
         :meth:`info_values`, with Python scalars for the scalar keys."""
-        return {
-            key: value[i].copy() if value.ndim > 1 else value.item(i)
-            for key, value in self._info_arrays().items()
+        # the keys of _info_arrays, built directly (a single env does this every step); the
+        # read-out rows are views of this step's fresh read-out copies
+        r = self._r
+        info: dict[str, Any] = {
+            "object_pose": r.object_pose[i],
+            "deformation": r.deformation[i],
+            "constraint_error": self.constraint_error[i].copy(),
+            "grasped": bool(self.grasped[i]),
+            "is_success": bool(self.success[i]),
+            "setpoint": r.setpoint[i],
+            "physics_flags": int(self.flags[i]),
+            "termination_reason": self.reason[i],
         }
+        if self.task.goal_dim:
+            info["goal"] = self.goal[i].copy()
+        for k, name in enumerate(self.task.terms):
+            info[name] = float(self.terms[k, i])
+        return info
 
     def _info_arrays(self) -> dict[str, np.ndarray]:
         """The arrays behind :meth:`info_values` (not copied: callers copy)."""

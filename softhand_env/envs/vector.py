@@ -18,14 +18,16 @@ from __future__ import annotations
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
+from gymnasium.error import ResetNeeded
 from gymnasium.utils import seeding
 from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 
+from softhand_env.envs.actions import action_array
 from softhand_env.envs.config import build_config
 from softhand_env.envs.options import EnvOptions
 from softhand_env.envs.task_configs import load_task_config
-from softhand_env.envs.transition import EpisodeBatch
+from softhand_env.envs.transition import EpisodeBatch, reset_goal
 
 if TYPE_CHECKING:
     from softhand_env.envs.rendering import SceneRenderer
@@ -98,6 +100,7 @@ class SoftHandVectorEnv(VectorEnv):
         self.physics = self._batch.physics
         self._steps = np.zeros(n, dtype=np.int64)
         self._autoreset = np.zeros(n, dtype=bool)
+        self._was_reset = np.zeros(n, dtype=bool)
         self._rngs: list[np.random.Generator | None] = [None] * n
         self._seeds: list[int | None] = [None] * n
         self._renderer: SceneRenderer | None = None
@@ -117,7 +120,9 @@ class SoftHandVectorEnv(VectorEnv):
         """Reset all environments, or those of ``options["reset_mask"]`` (bool (N,)).
 
         ``seed``: None (keep each generator; seed fresh ones from entropy), an int s (env i
-        gets s + i) or a list of N ints/None.
+        gets s + i) or a list of N ints/None. ``options["goal"]``: a goal (goal_dim,) (SI) for
+        every environment reset, or (N, goal_dim) one per environment. Other option keys raise
+        ``ValueError``; ``step`` before every environment was reset raises ``ResetNeeded``.
         """
         n = self.num_envs
         if seed is None:
@@ -128,19 +133,37 @@ class SoftHandVectorEnv(VectorEnv):
             seeds = list(seed)
             if len(seeds) != n:
                 raise ValueError(f"seed list must have length num_envs={n} (got {len(seeds)})")
+        goal = reset_goal(options, ("goal", "reset_mask"))
         mask = np.ones(n, dtype=bool)
         if options is not None and "reset_mask" in options:
             mask = options["reset_mask"]
             if not (isinstance(mask, np.ndarray) and mask.dtype == np.bool_ and mask.shape == (n,)):
                 raise ValueError(f"options['reset_mask'] must be a bool array of shape ({n},)")
+        goals = self._goal_rows(goal)
         for i in np.flatnonzero(mask):
             if seeds[i] is not None or self._rngs[i] is None:
                 self._rngs[i], self._seeds[i] = seeding.np_random(seeds[i])
-            self._batch.start(int(i), self._rngs[i])
+            self._batch.start(int(i), self._rngs[i], None if goals is None else goals[i])
+        self._was_reset[mask] = True
         self._batch.finish_reset(mask, self._rngs)
         self._steps[mask] = 0
         self._autoreset[mask] = False
         return self._batch.obs.copy(), self._infos(mask)
+
+    def _goal_rows(self, goal: Any) -> Any:
+        """``reset(options={"goal": g})``: g (goal_dim,) for every environment, or (N,
+        goal_dim) one row per environment; None without a goal option."""
+        if goal is None:
+            return None
+        if np.ndim(goal) == 2:
+            g = np.asarray(goal)
+            if g.shape[0] != self.num_envs:
+                raise ValueError(
+                    f"options['goal'] must have shape (goal_dim,) or ({self.num_envs}, "
+                    f"goal_dim) (got {g.shape})"
+                )
+            return list(g)
+        return [goal] * self.num_envs
 
     def _reset_rows(self, mask: np.ndarray) -> None:
         """Start new episodes in the environments of ``mask`` (their own generators)."""
@@ -154,12 +177,18 @@ class SoftHandVectorEnv(VectorEnv):
         self, actions: np.ndarray
     ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, dict[str, Any]]:
         n = self.num_envs
+        if not self._was_reset.all():
+            raise ResetNeeded(
+                "Cannot call step() before reset() of every environment "
+                f"(never reset: {np.flatnonzero(~self._was_reset).tolist()})"
+            )
+        actions = action_array(actions, (n, 2))
         resetting = (
             self._autoreset.copy()
             if self.autoreset_mode == AutoresetMode.NEXT_STEP
             else np.zeros(n, dtype=bool)
         )
-        if resetting.any() and np.shape(actions) == (n, 2):
+        if resetting.any():
             actions = np.array(actions, dtype=np.float64)
             actions[resetting] = 0.0  # ignored: these environments restart (as in Sync)
         batch = self._batch

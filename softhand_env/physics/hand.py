@@ -221,6 +221,21 @@ class StepStatus:
 
 
 @njit(cache=True)
+def _step_on_this_thread(Y, U, PRM, TIME, n, ch_limit, dn_limit, base_limit):
+    """One step of hands none of which is skipped, on the calling thread, in one compiled call
+    (what :meth:`HandPhysics.step` does for one hand): :func:`kernel.advance_batch_serial`,
+    then :func:`_finish_step`. Returns (flags, diag, failed, grasped, reason codes)."""
+    N = Y.shape[0]
+    y_prev = Y.copy()
+    flags = np.zeros(N, dtype=np.int64)
+    diag = np.zeros((N, 3))
+    kernel.advance_batch_serial(Y, U, PRM, n, ch_limit, diag, flags)
+    failed, grasped, reason = _finish_step(flags, Y, y_prev, PRM, diag, TIME, ch_limit,
+                                           dn_limit, base_limit)
+    return flags, diag, failed, grasped, reason
+
+
+@njit(cache=True)
 def _finish_step(FLAGS, Y, Y_PREV, PRM, DIAG, TIME, ch_limit, dn_limit, base_limit):
     """After the kernel: classify the hands (:func:`softhand_env.physics.failure.classify`, with the
     rollback of non-finite states to ``Y_PREV``) and advance TIME (N,) (s) by the substeps
@@ -453,16 +468,22 @@ class HandPhysics:
         if n < 1:
             raise ValueError(f"n_substeps must be >= 1 (got {n_substeps!r})")
         self._u[:] = u
-        y_prev = self._y.copy()
-        flags = np.zeros(self._n, dtype=np.int64)
-        if skip is not None:
-            flags[skip] = kernel.FLAG_SKIP
-        diag = np.zeros((self._n, 3))
-        kernel.advance_batch(self._y, self._u, self._prm, n, self.ch_limit, diag, flags)
-        failed, grasped, reason = _finish_step(
-            flags, self._y, y_prev, self._prm, diag, self._time, self.ch_limit, self.dn_limit,
-            self.base_limit,
-        )
+        if self._n == 1 and (skip is None or not skip[0]):
+            flags, diag, failed, grasped, reason = _step_on_this_thread(
+                self._y, self._u, self._prm, self._time, n, self.ch_limit, self.dn_limit,
+                self.base_limit,
+            )
+        else:
+            y_prev = self._y.copy()
+            flags = np.zeros(self._n, dtype=np.int64)
+            if skip is not None:
+                flags[skip] = kernel.FLAG_SKIP
+            diag = np.zeros((self._n, 3))
+            kernel.advance_batch(self._y, self._u, self._prm, n, self.ch_limit, diag, flags)
+            failed, grasped, reason = _finish_step(
+                flags, self._y, y_prev, self._prm, diag, self._time, self.ch_limit,
+                self.dn_limit, self.base_limit,
+            )
         status = StepStatus(flags, diag, failed, grasped, reason, self._batched)
         if strict and np.any(flags & (kernel.FLAG_NONFINITE | kernel.FLAG_CONSTRAINT)):
             raise PhysicsError(

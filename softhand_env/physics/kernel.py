@@ -478,8 +478,9 @@ def _advance_parallel(Y, U, PRM, n, ch_limit, DIAG, FLAGS):
 
 
 @njit(cache=True)
-def _advance_serial(Y, U, PRM, n, ch_limit, DIAG, FLAGS):
-    """:func:`advance_batch` with the blocks one after the other on the calling thread."""
+def advance_batch_serial(Y, U, PRM, n, ch_limit, DIAG, FLAGS):
+    """:func:`advance_batch` with the blocks one after the other on the calling thread (what
+    it runs for a single system); callable from compiled code."""
     active, width = _plan_blocks(FLAGS)
     n_active = active.shape[0]
     n_blocks = (n_active + width - 1) // width
@@ -522,7 +523,7 @@ def advance_batch(
         are skipped (their flags are kept); the others get their new flags.
     """
     if Y.shape[0] == 1:
-        _advance_serial(Y, U, PRM, n, ch_limit, DIAG, FLAGS)
+        advance_batch_serial(Y, U, PRM, n, ch_limit, DIAG, FLAGS)
     else:
         _advance_parallel(Y, U, PRM, n, ch_limit, DIAG, FLAGS)
 
@@ -553,6 +554,7 @@ __all__ = [
     "FLAG_SKIP",
     "advance",
     "advance_batch",
+    "advance_batch_serial",
     "advance_batch_py",
     "base_exceeded",
     "past_base",
