@@ -30,22 +30,9 @@ if TYPE_CHECKING:
         warn_if_unstable,
     )
 
-_HAND_NAMES = (
-    "HandPhysics",
-    "HandReadouts",
-    "PhysicsError",
-    "StepStatus",
-    "check_rk4_stability",
-    "describe_flags",
-    "rk4_stability_margins",
-    "warn_if_unstable",
-    "RK4_REAL_STABILITY",
-    "FLAG_NAMES",
-)
-
 
 def __getattr__(name: str) -> Any:
-    if name in _HAND_NAMES:
+    if name in __all__:
         from softhand_env.physics import hand
 
         return getattr(hand, name)
