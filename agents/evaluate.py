@@ -8,7 +8,7 @@
     python -m agents.evaluate --policy handling --grasp-deg 4.8 --n-episodes 1
 
 Episode k of the goal set starts with ``reset(seed=SEED + k)`` (default ``--seed 10000
---n-episodes 100``: the test goals; training validates on seed 5000). Success is issue 6's:
+--n-episodes 100``: the test goals; training validates on seed 5000). Success is the benchmark's:
 |x - x*| < 1 mm and/or |theta - theta*| < 1 deg (the task's targets) at the END of the
 episode (``info["is_success"]`` of the last step, with ``x_tolerance_mm=1.0,
 theta_tolerance_deg=1.0`` set on the env). A model is played deterministically with the
@@ -134,7 +134,7 @@ def build(args: argparse.Namespace) -> tuple[Any, str, dict[str, Any], Any, str]
         if policy.episode_steps is not None:
             kwargs["max_episode_steps"] = policy.episode_steps
         name = args.policy
-    kwargs.update(success_kwargs(env_id))  # issue 6's tolerance, whatever the run trained with
+    kwargs.update(success_kwargs(env_id))  # the benchmark's tolerance, whatever the run trained with
     return policy, env_id, kwargs, wrapper, name
 
 

@@ -15,7 +15,7 @@ import numpy as np
 
 from agents.env_factory import task_targets
 
-#: Issue 6's success definition, fixed: per controlled coordinate, (env keyword, value).
+#: The benchmark's success definition (within 1 mm / 1 deg at the end of the episode), fixed: per controlled coordinate, (env keyword, value).
 SUCCESS_TOLERANCE: dict[str, tuple[str, float]] = {
     "x": ("x_tolerance_mm", 1.0),
     "theta": ("theta_tolerance_deg", 1.0),
@@ -24,7 +24,7 @@ SUCCESS_TOLERANCE: dict[str, tuple[str, float]] = {
 
 
 def success_kwargs(env_id: str) -> dict[str, float]:
-    """Env keywords that set issue 6's success tolerance (1 mm / 1 deg) for ``env_id``."""
+    """Env keywords that set the benchmark's success tolerance (1 mm / 1 deg) for ``env_id``."""
     return dict(SUCCESS_TOLERANCE[t] for t in task_targets(env_id))
 
 
