@@ -134,7 +134,7 @@ def build(args: argparse.Namespace) -> tuple[Any, str, dict[str, Any], Any, str]
         if policy.episode_steps is not None:
             kwargs["max_episode_steps"] = policy.episode_steps
         name = args.policy
-    kwargs.update(success_kwargs(env_id))  # the benchmark's tolerance, whatever the run trained with
+    kwargs.update(success_kwargs(env_id))  # benchmark tolerance, whatever the training
     return policy, env_id, kwargs, wrapper, name
 
 

@@ -15,7 +15,8 @@ import numpy as np
 
 from agents.env_factory import task_targets
 
-#: The benchmark's success definition (within 1 mm / 1 deg at the end of the episode), fixed: per controlled coordinate, (env keyword, value).
+#: The benchmark's success rule (within 1 mm / 1 deg at the end of the episode), fixed:
+#: per controlled coordinate, (env keyword, value).
 SUCCESS_TOLERANCE: dict[str, tuple[str, float]] = {
     "x": ("x_tolerance_mm", 1.0),
     "theta": ("theta_tolerance_deg", 1.0),

@@ -21,7 +21,7 @@ created. Evaluate it with ``python -m agents.evaluate --model <run dir>`` or
 
 Evaluation during training (:class:`HeldOutEvalCallback`) plays a fixed validation goal set
 (``--eval-seed``, default 5000: episode k starts with ``reset(seed=5000 + k)``), disjoint from
-the test goals of :mod:`agents.evaluate` (seed 10000), with the benchmark's success tolerance (1 mm /
+the test goals of :mod:`agents.evaluate` (seed 10000), with the benchmark's success rule (1 mm /
 1 deg at the episode's end) whatever the training tolerance; the best model is the one with
 the highest success rate, ties broken by the lower median final error.
 """
