@@ -63,3 +63,10 @@ def test_human_mode_opens_a_window(monkeypatch):
     assert env.unwrapped._viewer is not None
     env.close()
     assert env.unwrapped._viewer is None
+
+
+@pytest.mark.parametrize("mode", [1, "rgb_array_list", "video"])
+def test_gym_make_refuses_a_bad_render_mode_with_a_clear_error(mode):
+    # gym.make itself must not choke on a non-string mode: the env's own check names the field
+    with pytest.raises(ValueError, match="render_mode must be None or one of"):
+        gym.make("SoftHandReorient-v0", render_mode=mode)

@@ -354,6 +354,3 @@ def make_vector_env(
         return VectorDictObservation(env, goal_obs, privileged_obs)
     return env
 
-
-# gym.make reads the render modes of the entry point from its metadata
-make_env.metadata = SoftHandEnv.metadata  # type: ignore[attr-defined]
