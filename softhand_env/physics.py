@@ -9,13 +9,11 @@ divergence either by raising :class:`PhysicsError` (``strict=True``) or through
 
 from __future__ import annotations
 
-import math
-import warnings
 from dataclasses import dataclass
 
 import numpy as np
 
-from softhand_env import kernel
+from softhand_env import friction, kernel
 from softhand_env.model import (
     DN_1,
     DT_1,
@@ -53,61 +51,13 @@ def describe_flags(flags: int) -> list[str]:
     return [name for bit, name in FLAG_NAMES.items() if flags & bit]
 
 
-#: Extent of classic RK4's stability region on the negative real axis (|h lambda| <= 2.785).
-RK4_REAL_STABILITY = 2.785
-
-
-def rk4_stability_margins(params: HandParams) -> dict[str, float]:
-    """|lambda| dt of the stiffest modes of the model, to compare with RK4's limit 2.785.
-
-    Modes: the holonomic Baumgarte dynamics (double root -alpha), the non-holonomic one
-    (-beta), and the compression and bending modes of a fingertip at d_n = a/2 (stiffness
-    2 pi E d_n / cos^2 theta_p with theta_p = 0, resp. 2 k_b pi E d_n, on the deformation
-    inertia with the viscous damping c_n, c_t). Joint modes are left out: through the
-    constraints the fingers carry the deformation inertia, which keeps them far from the
-    limit for any plausible gains.
-
-    Returns
-    -------
-    dict
-        Mode name -> |lambda|_max * dt (dimensionless).
-    """
-
-    def fastest_root(m: float, c: float, k: float) -> float:
-        disc = c * c - 4.0 * m * k
-        if disc >= 0:
-            return (c + math.sqrt(disc)) / (2.0 * m)
-        return math.sqrt(k / m)
-
-    dn = params.a / 2
-    k_n = 2.0 * math.pi * params.E * dn
-    k_t = 2.0 * params.bending * math.pi * params.E * dn
-    m = params.m_deform
-    return {
-        "holonomic (alpha)": params.alpha * params.dt,
-        "non-holonomic (beta)": params.beta * params.dt,
-        "compression": fastest_root(m, params.c_n, k_n) * params.dt,
-        "bending": fastest_root(m, params.c_t, k_t) * params.dt,
-    }
-
-
-def check_rk4_stability(params: HandParams) -> list[str]:
-    """Names of the modes whose |lambda| dt exceeds RK4's stability limit (empty if none)."""
-    return [k for k, v in rk4_stability_margins(params).items() if v > RK4_REAL_STABILITY]
-
-
-def warn_if_unstable(params: HandParams, stacklevel: int = 2) -> None:
-    """Emit a ``RuntimeWarning`` naming the modes beyond RK4's stability limit, if any."""
-    unstable = check_rk4_stability(params)
-    if unstable:
-        margins = rk4_stability_margins(params)
-        detail = ", ".join(f"{k}: |lambda| dt = {margins[k]:.2f}" for k in unstable)
-        warnings.warn(
-            f"RK4 step dt = {params.dt:g} s is beyond the stability limit "
-            f"({RK4_REAL_STABILITY}) of the {detail}; expect divergence (reduce dt)",
-            RuntimeWarning,
-            stacklevel=stacklevel + 1,
-        )
+# the a-priori RK4 stability check lives in softhand_env.stability; these names stay here
+from softhand_env.stability import (  # noqa: E402, F401
+    RK4_REAL_STABILITY,
+    check_rk4_stability,
+    rk4_stability_margins,
+    warn_if_unstable,
+)
 
 
 @dataclass(frozen=True)
@@ -124,12 +74,17 @@ class StepStatus:
         Largest |C^H| (m) over the visited states.
     max_cn : float
         Largest |C^N| (m/s) over the visited states.
+    impulse : ndarray, shape (4,), or None
+        Contact impulses over the substeps taken (N s): normal J_n1, J_n2 (integral of the
+        holonomic multipliers; > 0 pushes the fingertip into the object), tangential J_t1,
+        J_t2 (integral of the rolling multipliers), see :mod:`softhand_env.friction`.
     """
 
     flags: int
     substeps: int
     max_ch: float
     max_cn: float
+    impulse: np.ndarray | None = None
 
     @property
     def fatal(self) -> bool:
@@ -140,6 +95,21 @@ class StepStatus:
     def reasons(self) -> list[str]:
         """Names of the flags set."""
         return describe_flags(self.flags)
+
+    @property
+    def friction_ratio(self) -> np.ndarray:
+        """|J_t| / J_n per finger over the step, shape (2,) (inf where J_n <= 0)."""
+        return friction.friction_ratio(self._impulse())
+
+    @property
+    def tension(self) -> np.ndarray:
+        """True per finger whose normal impulse over the step is negative, shape (2,)."""
+        return friction.tension(self._impulse())
+
+    def _impulse(self) -> np.ndarray:
+        if self.impulse is None:
+            raise ValueError("this StepStatus carries no contact impulses")
+        return self.impulse
 
 
 class HandPhysics:
@@ -161,7 +131,7 @@ class HandPhysics:
         self._y = initial_state(self.params)
         self._setpoint = self._y[TH_1 : TH_1 + 2].copy()
         self._time = 0.0
-        self._diag = np.zeros(2)
+        self._diag = np.zeros(kernel.N_STEP_DIAG)
 
     # ----------------------------------------------------------------- state management
     @property
@@ -244,7 +214,10 @@ class HandPhysics:
         flags, done = kernel.advance(self._y, u, self._prm, n, self.ch_limit, self._diag)
         self._setpoint = u.copy()
         self._time += done * self.params.dt
-        status = StepStatus(int(flags), int(done), float(self._diag[0]), float(self._diag[1]))
+        status = StepStatus(
+            int(flags), int(done), float(self._diag[0]), float(self._diag[1]),
+            self._diag[2:6].copy(),
+        )
         if strict and flags & (kernel.FLAG_NONFINITE | kernel.FLAG_CONSTRAINT):
             raise PhysicsError(
                 f"simulation diverged at t = {self._time:.4f} s: {', '.join(status.reasons)}",

@@ -25,7 +25,7 @@ def paper_run():
 
 
 def advance(y, u_rad, prm, n):
-    diag = np.zeros(2)
+    diag = np.zeros(kernel.N_STEP_DIAG)
     flags, done = kernel.advance(y, np.asarray(u_rad, float), prm, n, kernel.CH_LIMIT, diag)
     assert flags == 0 and done == n, kernel_flags_message(flags)
     return diag
