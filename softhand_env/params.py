@@ -42,6 +42,12 @@ YAML key             field       meaning (SI unit of the field)
                                  (:mod:`softhand_env.friction`); not used by the dynamics
 ===================  ==========  ============================================================
 
+Table 5.1 prints the PID gains (Kp = 300, Kd = 14, Ki = 0.1) without units; they are taken per
+radian of joint angle (N m/rad, N m s/rad, N m/(rad s)), as the YAML keys say. Read per degree
+(x 180/pi) the finger mode of the paper's own simulation at dt = 0.1 ms would be far beyond
+RK4's stability limit (:mod:`softhand_env.stability`), so the per-radian reading is the one
+the paper's run supports.
+
 The friction coefficient is not in the dissertation. The default ``mu = 1.0`` is for its soft
 polyurethane-gel fingertips (E = 0.23-0.30 MPa, far softer than any cast urethane grade) on a
 dry, smooth rigid object: the dry friction of polyurethane elastomers rises as their hardness
