@@ -11,23 +11,21 @@ the couplings the constraints create: the joint inertia I_i, the PID gains Kp, K
 contact stiffness 2 pi E d_n / cos^2 theta_p and bending stiffness, the viscosities c_n, c_t,
 the deformation inertia and the object's mass and inertia. (The fastest physical mode of the
 paper's hand is the finger damping mode: Kd and c_n acting on the joint inertia plus the
-deformation inertia the constraints attach to the finger, |lambda| dt = 1.9 at Table 5.1;
-Kd = 21 puts it at 2.85, beyond the limit.)
+deformation inertia the constraints attach to the finger: |lambda| dt = 0.84 at Table 5.1,
+2.42 at Kd = 17.5, 2.90 at Kd = 21, beyond the limit, and 3.85 at Kd = 28.)
 
 Probe states (:func:`probe_states`): symmetric grasps at rest on both holonomic constraints
 with both fingertips compressed to d_n = 0.2 a, 0.35 a and 0.5 a (4, 7 and 10 mm for the
 paper's hand; 10 mm is the largest compression the environments accept and the contact
-stiffness grows with d_n), contact angle 0. Contact angles change the finger mode little inside
-the validated region (theta_p <= 30 deg); beyond it the mode is faster: at the theta_p = 42 deg
-the paper's motion 7 reaches, gains x1.2 with mass x0.8 have |lambda| dt = 2.79 (limit 2.785)
-although they pass this check (measured along the run, see the README), and such a run ends
-over-compressed at dt = 0.1 ms. Measured against the fastest finger rate along the paper's motions (linearised every 10 ms
-of a dt = 0.02 ms run), the probe states underestimate it by 0.9 % (Kd = 17.5), 1.3 % (gains
-x1.2, mass x0.8), 3.5 % (finger inertia x0.8) and 4.2 % (M_deform = 0.1156 kg); a mode
-therefore counts as unstable if RK4 amplifies it at (1 + :data:`STEP_MARGIN`) dt, 5 % more
-than the step. Each eigenvalue is named after the coordinates that dominate
-its eigenvector (angles weighted by the finger length to compare them with lengths); the
-Baumgarte modes (-alpha, double, and -beta) are reported from their exact values.
+stiffness grows with d_n), contact angle 0. The contact angle changes the finger mode a little:
+against the fastest finger rate along the paper's motions (linearised every 10 ms of a dt =
+0.02 ms run) the probe states fall short by 0.9 % (Kd = 17.5), 1.3 % (gains x1.2 with object
+mass x0.8, |lambda| dt = 2.755 at the probes, 2.79 at the theta_p = 42 deg of motion 7; at dt =
+0.1 ms that run ends over-compressed), 3.5 % (finger inertia x0.8) and 4.2 % (M_deform = 0.1156
+kg). A mode therefore counts as unstable if RK4 amplifies it at (1 + :data:`STEP_MARGIN`) dt, 5
+% more than the step. Each eigenvalue is named after the coordinates that dominate its
+eigenvector (angles weighted by the finger length to compare them with lengths); the Baumgarte
+modes (-alpha, double, and -beta) are reported from their exact values.
 """
 
 from __future__ import annotations
