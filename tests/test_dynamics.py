@@ -118,7 +118,8 @@ def test_every_paper_motion_settles(paper_run):
     for m in range(len(PAPER_MOTIONS_DEG)):
         last = np.flatnonzero(paper_run.motion == m)[-1]
         speed = np.hypot(*paper_run.y[last, NQ : NQ + 2])
-        assert speed < 1e-4, (m + 1, speed)
+        # measured: 5.4e-8 .. 7.8e-8 m/s at the end of each 1 s motion; bar 10x the largest
+        assert speed < 7.8e-7, (m + 1, speed)
 
 
 def test_grasp_moves_object_down_and_compresses_symmetrically(paper_run):
