@@ -28,6 +28,15 @@ from softhand_env.model import (
 )
 from softhand_env.params import HandParams
 
+# the a-priori RK4 stability check lives in softhand_env.stability; these names stay importable
+# from here
+from softhand_env.stability import (  # noqa: F401
+    RK4_REAL_STABILITY,
+    check_rk4_stability,
+    rk4_stability_margins,
+    warn_if_unstable,
+)
+
 
 class PhysicsError(RuntimeError):
     """The simulated state left the model's validity (NaN or constraint blow-up)."""
@@ -49,15 +58,6 @@ FLAG_NAMES = {
 def describe_flags(flags: int) -> list[str]:
     """Names of the status flags set in ``flags`` (see :mod:`softhand_env.kernel`)."""
     return [name for bit, name in FLAG_NAMES.items() if flags & bit]
-
-
-# the a-priori RK4 stability check lives in softhand_env.stability; these names stay here
-from softhand_env.stability import (  # noqa: E402, F401
-    RK4_REAL_STABILITY,
-    check_rk4_stability,
-    rk4_stability_margins,
-    warn_if_unstable,
-)
 
 
 @dataclass(frozen=True)
