@@ -8,6 +8,8 @@ with 20 ms control steps (200 substeps), the environments' control period.
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 import pytest
 
@@ -15,6 +17,7 @@ from softhand_env import friction, kernel
 from softhand_env.model import pack_params
 from softhand_env.params import HandParams, hand_params_from_dict, load_hand_params
 from softhand_env.physics import HandPhysics
+from softhand_env.quasistatic import handling_path
 from softhand_env.simulate import PAPER_MOTIONS_DEG
 
 PARAMS = HandParams()
@@ -165,3 +168,37 @@ def test_mu_is_a_hand_parameter_in_both_configs():
 
 def test_mu_does_not_change_the_dynamics():
     np.testing.assert_array_equal(pack_params(PARAMS), pack_params(PARAMS.replace(mu=0.2)))
+
+
+# ------------------------------------------------------------------------ handling process
+def handling_steps(params: HandParams, grasp_deg: float = 6.0):
+    """Impulses (K, 4) and operation numbers (K,) of the §4.3 handling process at 20 ms per
+    0.2 deg set-point increment, from the parallel point contact, until the grasp is lost."""
+    setpoints, op = handling_path(math.radians(grasp_deg), math.radians(0.2),
+                                  math.radians(20.0), 3)
+    physics = HandPhysics(params)
+    out, ops = [], []
+    for k in range(1, len(setpoints)):
+        status = physics.step(setpoints[k], STEP, strict=False)
+        if status.fatal:
+            break
+        out.append(status.impulse)
+        ops.append(op[k])
+    return np.array(out), np.array(ops)
+
+
+def test_handling_process_friction_and_release_tension():
+    """Without gravity (chapter 4's assumption) operations 1-6 need at most 0.489 at the 6 deg
+    grasp. With gravity the object hangs on friction while the squeeze builds (step 1 needs
+    1.049 > mu), and opening the hand (operation 7) first slips (ratio 2.0) and then pulls:
+    negative normal impulses for several control steps while d_n is still positive."""
+    imp, op = handling_steps(PARAMS.replace(g=0.0))
+    ratio = friction.friction_ratio(imp[op <= 6]).max()
+    assert 0.48 < ratio < 0.50
+    imp, op = handling_steps(PARAMS)
+    first = friction.friction_ratio(imp[0]).max()
+    assert 1.04 < first < 1.06 and friction.slipping(imp[0], PARAMS.mu).any()
+    assert friction.friction_ratio(imp[2:][op[2:] <= 6]).max() < 0.53
+    release = imp[op == 7]
+    assert friction.tension(release).any(axis=1).sum() >= 5
+    assert not friction.tension(imp[op <= 6]).any()
