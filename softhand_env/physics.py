@@ -9,7 +9,7 @@ divergence either by raising :class:`PhysicsError` (``strict=True``) or through
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -84,7 +84,7 @@ class StepStatus:
     substeps: int
     max_ch: float
     max_cn: float
-    impulse: np.ndarray | None = None
+    impulse: np.ndarray | None = field(default=None, compare=False, hash=False)
 
     @property
     def fatal(self) -> bool:
