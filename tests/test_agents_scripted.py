@@ -42,8 +42,9 @@ def test_chapter4_handling_process_keeps_grasp_and_matches_quasistatic(grasp_deg
     for op in (2, 3):
         x_dyn = infos[policy.end_of_operation(op) + 1]["object_pose"][0]
         x_qs = quasi.x[quasi.end_of(op)]
-        # measured: dynamic (Table 5.1, gravity) within 0.7-1.1 mm of quasi-static (Table 4.1)
-        assert np.sign(x_dyn) == np.sign(x_qs) and abs(x_dyn - x_qs) < 5e-3, (op, x_dyn, x_qs)
+        # measured: dynamic (Table 5.1, gravity) within 0.71-1.02 mm of quasi-static (Table
+        # 4.1), growing with the grasp angle; different models, so a 2x bar: 2 mm
+        assert np.sign(x_dyn) == np.sign(x_qs) and abs(x_dyn - x_qs) < 2e-3, (op, x_dyn, x_qs)
 
 
 @pytest.mark.parametrize(

@@ -232,6 +232,9 @@ def _random_actions(env, seed, n):
     return out
 
 
+# the fuzzed hands reach Kd x2 at dt = 0.1 ms, beyond RK4's stability limit of the finger
+# mode: they warn at construction (tested in test_stability) and must still keep the invariants
+@pytest.mark.filterwarnings("ignore:RK4 step")
 @fuzz(60)
 @given(kwargs=valid_kwargs(), seed=st.integers(0, 2**16))
 def test_any_valid_configuration_keeps_every_invariant(kwargs, seed):
@@ -248,6 +251,7 @@ def test_any_valid_configuration_keeps_every_invariant(kwargs, seed):
                 return
 
 
+@pytest.mark.filterwarnings("ignore:RK4 step")
 @fuzz(20)
 @given(kwargs=valid_kwargs(), seed=st.integers(0, 2**16))
 def test_native_vector_env_matches_single_envs_on_any_configuration(kwargs, seed):
