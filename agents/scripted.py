@@ -124,6 +124,8 @@ class PaperSequencePolicy(ScriptedPolicy):
 class HandlingProcessPolicy(ScriptedPolicy):
     """The handling process of §4.3 (grasp, +20, -40, +40 deg, cycles, back) at one grasp angle.
 
+    Replayed without gravity, as chapter 4 models it (``env_kwargs`` sets ``g = 0``).
+
     Parameters
     ----------
     grasp_angle_deg : float
@@ -153,8 +155,17 @@ class HandlingProcessPolicy(ScriptedPolicy):
             self.grasp_angle, math.radians(step_deg), math.radians(rotation_deg), cycles
         )
         # the paper's process runs the contact up to 20 % past the fingertip base at 7.2 deg
-        # (the quasi-static model flags the same increments): replay it, do not stop there
-        self.env_kwargs = {**ABSOLUTE_RAD, "grasp_duration": 0.0, "base_tolerance": math.inf}
+        # (the quasi-static model flags the same increments): replay it, do not stop there.
+        # Chapter 4 ignores gravity, and so does the replay (g = 0): from the point-contact
+        # start the object would otherwise hang on friction while the squeeze builds (friction
+        # ratio 1.05 > mu in the first control step, a slip); without gravity operations 1-6
+        # need at most 0.52
+        self.env_kwargs = {
+            **ABSOLUTE_RAD,
+            "grasp_duration": 0.0,
+            "base_tolerance": math.inf,
+            "hand_overrides": {"g": 0.0},
+        }
         self.episode_steps = len(self.setpoints) - 1 + settle_steps
 
     def action(self, index: int, obs: np.ndarray, step: int) -> np.ndarray:

@@ -24,7 +24,7 @@ def paper_run():
 
 
 def advance(y, u_rad, prm, n):
-    diag = np.zeros(2)
+    diag = np.zeros(kernel.N_STEP_DIAG)
     flags, done = kernel.advance(y, np.asarray(u_rad, float), prm, n, kernel.CH_LIMIT, diag)
     assert flags == 0 and done == n, kernel_flags_message(flags)
     return diag
@@ -117,7 +117,8 @@ def test_every_paper_motion_settles(paper_run):
     for m in range(len(PAPER_MOTIONS_DEG)):
         last = np.flatnonzero(paper_run.motion == m)[-1]
         speed = np.hypot(*paper_run.y[last, NQ : NQ + 2])
-        assert speed < 1e-4, (m + 1, speed)
+        # measured: 5.4e-8 .. 7.8e-8 m/s at the end of each 1 s motion; bar 10x the largest
+        assert speed < 7.8e-7, (m + 1, speed)
 
 
 def test_grasp_moves_object_down_and_compresses_symmetrically(paper_run):

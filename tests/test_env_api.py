@@ -434,7 +434,7 @@ def test_nonfinite_state_rolls_back_and_terminates(monkeypatch):
         # rollback and classification
         y_prev = Y.copy()
         flags = np.zeros(len(Y), dtype=np.int64)
-        diag = np.zeros((len(Y), 3))
+        diag = np.zeros((len(Y), kernel.N_STEP_DIAG))
         kernel.advance_batch(Y, U, PRM, n, ch_limit, diag, flags)
         Y[:] = np.nan
         flags[:] = kernel.FLAG_NONFINITE

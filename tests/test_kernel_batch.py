@@ -59,7 +59,7 @@ def _outputs(Y, FLAGS_IN):
     """Fresh copies of the state and input flags, and a DIAG of -1 (untouched marker)."""
     N = Y.shape[0]
     FLAGS = np.zeros(N, dtype=np.int64) if FLAGS_IN is None else FLAGS_IN.copy()
-    return Y.copy(), np.full((N, 2), -1.0), FLAGS
+    return Y.copy(), np.full((N, kernel.N_STEP_DIAG), -1.0), FLAGS
 
 
 def run_single(Y, U, PRM, n, FLAGS_IN=None, ch_limit=CH_LIMIT):
@@ -68,7 +68,7 @@ def run_single(Y, U, PRM, n, FLAGS_IN=None, ch_limit=CH_LIMIT):
     for s in range(Y.shape[0]):
         if FLAGS[s] & (kernel.FATAL_FLAGS | kernel.FLAG_SKIP):
             continue
-        d = np.zeros(2)
+        d = np.zeros(kernel.N_STEP_DIAG)
         FLAGS[s], _ = kernel.advance(Y[s], U[s], PRM[s], n, ch_limit, d)
         DIAG[s] = d
     return Y, DIAG, FLAGS
@@ -81,7 +81,7 @@ def run_batch(Y, U, PRM, n, FLAGS_IN=None, ch_limit=CH_LIMIT):
 
 
 def assert_same(batch, single):
-    """Bit for bit: state (NaN where NaN), diag and flags.
+    """Bit for bit: state (NaN where NaN), diag (residuals and contact impulses) and flags.
 
     Both kernels evaluate the same model source (model.csm_terms) and the same RK4
     combinations in strict IEEE arithmetic (model._FASTMATH), so vectorising across systems
@@ -248,7 +248,8 @@ def test_lane_rhs_matches_csm_rhs():
         diag = np.zeros(model.N_DIAG)
         model.csm_rhs(Y[s], U[s], PRM[s], dy, diag)
         np.testing.assert_array_equal(Kl[s, :NY], dy)
-        np.testing.assert_array_equal(Kl[s, NY:], diag[:4])
+        np.testing.assert_array_equal(Kl[s, NY : NY + 4], diag[:4])  # C^H, C^N
+        np.testing.assert_array_equal(Kl[s, NY + 4 :], diag[6:10])  # lambda_H, lambda_N
 
 
 @pytest.mark.skipif(platform.machine() not in ("x86_64", "AMD64"), reason="x86 SIMD check")

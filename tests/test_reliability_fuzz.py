@@ -180,8 +180,9 @@ def valid_kwargs(draw) -> dict[str, Any]:
     kw["history_len"] = draw(st.integers(1, 4))
     kw["randomize"] = draw(st.booleans())
     for key in ("rand_width", "rand_mass", "rand_inertia", "rand_stiffness", "rand_damping",
-                "rand_gains"):
+                "rand_gains", "rand_friction"):
         kw[key] = draw(_maybe(st.floats(0.0, 0.3)))
+    kw["terminate_on_slip"] = draw(st.booleans())
     kw["obs_noise"] = draw(_maybe(st.floats(0.0, 0.2)))
     used = set(load_task_config(task)) - {"max_episode_steps"}
     task_strategies = {
@@ -209,6 +210,21 @@ def valid_kwargs(draw) -> dict[str, Any]:
     return kw
 
 
+#: Start of the construction-time refusal of randomisation ranges with an RK4-unstable corner.
+UNSTABLE_RANGES = "randomisation range leaves RK4's stable region"
+
+
+def _make_or_unstable_ranges(factory):
+    """``factory()``, or None if the documented refusal of randomisation ranges whose extremes
+    leave RK4's stable region is raised (valid keywords, but not together on this hand)."""
+    try:
+        return factory()
+    except ValueError as exc:
+        assert str(exc).startswith(UNSTABLE_RANGES) or UNSTABLE_RANGES in str(exc), exc
+        event("randomisation ranges refused at construction (RK4-unstable corner)")
+        return None
+
+
 def _reset_or_grasp_failure(env, seed):
     """``env.reset(seed)``, or None if the documented grasp-phase PhysicsError is raised."""
     try:
@@ -232,10 +248,15 @@ def _random_actions(env, seed, n):
     return out
 
 
+# the fuzzed hands reach Kd x2 at dt = 0.1 ms, beyond RK4's stability limit of the finger
+# mode: they warn at construction (tested in test_stability) and must still keep the invariants
+@pytest.mark.filterwarnings("ignore:RK4 step")
 @fuzz(60)
 @given(kwargs=valid_kwargs(), seed=st.integers(0, 2**16))
 def test_any_valid_configuration_keeps_every_invariant(kwargs, seed):
-    env = gym.make(TASK_IDS[kwargs["task"]], **kwargs)
+    env = _make_or_unstable_ranges(lambda: gym.make(TASK_IDS[kwargs["task"]], **kwargs))
+    if env is None:
+        return
     assert env.observation_space.shape == env.unwrapped.config.layout.space().shape
     if _reset_or_grasp_failure(env, seed) is None:
         return
@@ -248,12 +269,19 @@ def test_any_valid_configuration_keeps_every_invariant(kwargs, seed):
                 return
 
 
+@pytest.mark.filterwarnings("ignore:RK4 step")
 @fuzz(20)
 @given(kwargs=valid_kwargs(), seed=st.integers(0, 2**16))
 def test_native_vector_env_matches_single_envs_on_any_configuration(kwargs, seed):
     n, steps = 2, 10
     env_id = TASK_IDS[kwargs["task"]]
-    native = SoftHandVectorEnv(num_envs=n, max_episode_steps=4, **kwargs)
+    native = _make_or_unstable_ranges(
+        lambda: SoftHandVectorEnv(num_envs=n, max_episode_steps=4, **kwargs)
+    )
+    if native is None:
+        with pytest.raises(ValueError, match=UNSTABLE_RANGES):
+            gym.make(env_id, **kwargs)
+        return
     single = SyncVectorEnv([lambda: gym.make(env_id, max_episode_steps=4, **kwargs)] * n)
     try:
         o1, _ = native.reset(seed=seed)
@@ -288,6 +316,8 @@ def test_native_vector_env_matches_single_envs_on_any_configuration(kwargs, seed
                 if m:
                     event(f"vector ended: {a}")
         np.testing.assert_array_equal(i1["physics_flags"], i2["physics_flags"])
+        np.testing.assert_array_equal(i1["friction_ratio"], i2["friction_ratio"])
+        np.testing.assert_array_equal(i1["tension"], i2["tension"])
     native.close()
     single.close()
 
@@ -324,6 +354,7 @@ NUMERIC = {
     "rand_stiffness": (0.0, 1.0, True, False, False),
     "rand_damping": (0.0, 1.0, True, False, False),
     "rand_gains": (0.0, 1.0, True, False, False),
+    "rand_friction": (0.0, 1.0, True, False, False),
     "obs_noise": (0.0, math.inf, True, False, False),
     "history_len": (1, math.inf, True, False, True),
     "render_width": (16, math.inf, True, False, True),
@@ -374,7 +405,7 @@ ENUMS = {
     "obs_mode": ["proprio", "proprio_tactile"],
     "render_mode": ["human", "rgb_array"],
 }
-BOOLS = ("normalize_action", "randomize", "terminate_on_success")
+BOOLS = ("normalize_action", "randomize", "terminate_on_success", "terminate_on_slip")
 # identifier-like names (their repr in a message contains them verbatim)
 NAME_CHARS = st.characters(whitelist_categories=("Ll", "Lu", "Nd"), whitelist_characters="_")
 

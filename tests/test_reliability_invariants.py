@@ -45,6 +45,11 @@ def _finite_info(info: dict[str, Any], reason: str | None) -> None:
         assert not np.isnan(arr).any(), f"NaN in info[{key!r}]"
         if key == "constraint_error" and reason == "nonfinite_state":
             continue  # documented: inf marks a residual that went non-finite with the state
+        if key == "friction_ratio":
+            # documented: inf exactly where the normal impulse of the step is <= 0
+            no_push = np.asarray(info["contact_impulse"])[:2] <= 0.0
+            np.testing.assert_array_equal(np.isinf(arr), no_push)
+            continue
         assert np.isfinite(arr).all(), f"inf in info[{key!r}]"
 
 
@@ -72,6 +77,16 @@ def check_transition(
     terms = [info[t] for t in base.task.terms]
     assert reward == sum(terms), f"reward {reward} is not the sum of its terms {terms}"
 
+    # contact: the ratio recomputed from the impulses; slip / tension judged against mu
+    imp = np.asarray(info["contact_impulse"])
+    jn, jt = imp[:2], imp[2:]
+    ratio = np.asarray(info["friction_ratio"])
+    with np.errstate(divide="ignore", invalid="ignore"):
+        np.testing.assert_array_equal(ratio, np.where(jn > 0.0, np.abs(jt) / jn, np.inf))
+    np.testing.assert_array_equal(info["tension"], jn < 0.0)
+    mu = base.physics.params.mu
+    contact_failed = bool(ratio.max() > mu)  # tension included: its ratio is inf
+
     y = base.physics.get_state()
     assert np.isfinite(y).all()
     np.testing.assert_array_equal(info["deformation"], y[DN_1 : DN_1 + 4])
@@ -86,10 +101,11 @@ def check_transition(
         assert 0.0 < dn.min() and dn.max() < dn_limit, dn
         assert base_overshoot(y, a) <= base_limit * (1 + 1e-9), base_overshoot(y, a)
         assert info["grasped"]
+        assert not (cfg.terminate_on_slip and contact_failed), (ratio, mu)
         if base.task.terms:
             assert info["reward_failure"] == 0.0
         return
-    assert reason in REASONS + ("success",), reason
+    assert reason in REASONS + ("tension", "slip", "success"), reason
     if reason == "success":
         assert info["is_success"] and base.task.terminate_on_success
         return
@@ -108,6 +124,10 @@ def check_transition(
         assert (reason == "overcompressed") == over, (reason, dn)
         if not over:
             assert (reason == "grasp_lost") == lost, (reason, dn)
+    if reason in ("tension", "slip"):
+        assert cfg.terminate_on_slip and contact_failed and not diverged
+        assert not over and not lost and not flags & kernel.FATAL_FLAGS
+        assert (reason == "tension") == bool(info["tension"].any())
     if reason == "contact_past_base":
         # tolerance: the env evaluates the same closed form in another arrangement
         assert flags & kernel.FLAG_BASE

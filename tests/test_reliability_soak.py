@@ -34,7 +34,7 @@ def test_soak_smoke_run_reports_consistent_figures():
     assert r["episodes"] == r["truncations"] + sum(r["termination_reasons"].values())
     assert set(r["termination_reasons"]) <= {"nonfinite_state", "constraint_violation",
                                              "overcompressed", "grasp_lost", "contact_past_base",
-                                             "success"}
+                                             "tension", "slip", "success"}
     assert 0 < r["peak_rss_start_mib"] <= r["peak_rss_end_mib"]
     assert r["peak_rss_growth_percent"] < 5.0
 

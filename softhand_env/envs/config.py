@@ -22,6 +22,7 @@ from softhand_env.envs.options import EnvOptions
 from softhand_env.envs.randomization import PRESET, Randomization
 from softhand_env.envs.tasks import TASK_KWARGS, Task, make_task
 from softhand_env.physics.params import HandParams, is_finite_real, load_hand_params
+from softhand_env.physics.stability import warn_if_unstable
 
 #: Upper bounds of the environment keywords, checked before anything is allocated or run
 #: (with the other ranges, each ValueError names the keyword and its range): control period
@@ -66,6 +67,9 @@ class EnvConfig:
     base_limit : float
         1 + ``base_tolerance``: a contact past its fingertip base fails when it reaches past
         the base by more than this (:func:`softhand_env.physics.contact.beyond_base`).
+    terminate_on_slip : bool
+        A control step whose contact needs more friction than ``mu`` (``slip``) or pulls
+        (``tension``) ends the episode (False: only reported in ``info``).
     render_mode : str or None
     render_size : (int, int)
         Frame (width, height) in pixels.
@@ -84,6 +88,7 @@ class EnvConfig:
     dn_limit: float
     ch_limit: float
     base_limit: float
+    terminate_on_slip: bool
     render_mode: str | None
     render_size: tuple[int, int]
 
@@ -121,7 +126,10 @@ def _flag(name: str, value: Any) -> bool:
 def build_config(options: EnvOptions) -> EnvConfig:
     """Validate the environment keywords and resolve them into an :class:`EnvConfig`.
 
-    Raises ``ValueError`` naming the keyword.
+    Raises ``ValueError`` naming the keyword (randomisation ranges whose extremes leave RK4's
+    stable region or the valid range of a parameter included); warns (``RuntimeWarning``)
+    if the hand itself is beyond RK4's stability limit at its ``dt``
+    (:func:`~softhand_env.physics.stability.warn_if_unstable`).
     """
     o = options
     task_kw = {k: getattr(o, k) for k in TASK_KWARGS}
@@ -177,6 +185,9 @@ def build_config(options: EnvOptions) -> EnvConfig:
         ):
             raise ValueError(f"{name} must be an int in [16, {MAX_RENDER_SIZE}] (got {value!r})")
     task_obj = make_task(o.task, **task_kw)
+    randomization = Randomization.resolve(_flag("randomize", o.randomize), **rand_kw)
+    randomization.check_ranges(params)
+    warn_if_unstable(params, stacklevel=3)
     return EnvConfig(
         task=task_obj,
         params=params,
@@ -194,10 +205,11 @@ def build_config(options: EnvOptions) -> EnvConfig:
         grasp_setpoint=np.radians(grasp),
         n_grasp=n_grasp,
         reset_noise=math.radians(_number("reset_noise_deg", o.reset_noise_deg, 0.0, 10.0)),
-        randomization=Randomization.resolve(_flag("randomize", o.randomize), **rand_kw),
+        randomization=randomization,
         dn_limit=_number("overcompression_ratio", o.overcompression_ratio, 1e-3, 1.0) * params.a,
         ch_limit=_number("ch_limit", o.ch_limit, 1e-12, 1.0),
         base_limit=1.0 + _tolerance("base_tolerance", o.base_tolerance),
+        terminate_on_slip=_flag("terminate_on_slip", o.terminate_on_slip),
         render_mode=o.render_mode,
         render_size=(int(o.render_width), int(o.render_height)),
     )

@@ -56,6 +56,8 @@ class EnvOptions:
         terminate when a holonomic residual exceeds this (m)
     base_tolerance : float
         allowed overshoot of tan theta_p past the base (inf: off)
+    terminate_on_slip : bool
+        end the episode on slip or tension (False: report only)
     randomize : bool
         preset for every ``rand_*`` / ``obs_noise`` left at None
     rand_width : float | None
@@ -70,6 +72,8 @@ class EnvOptions:
         c_n and c_t, relative half-width (preset 0.2)
     rand_gains : float | None
         Kp, Kd, Ki, relative half-width (preset 0.1)
+    rand_friction : float | None
+        friction coefficient mu, relative half-width (preset 0.2)
     obs_noise : float | None
         observation noise std, scaled units (preset 0.01)
     goal_x_range_mm : float | None
@@ -118,6 +122,7 @@ class EnvOptions:
     overcompression_ratio: float = 0.5
     ch_limit: float = 0.001
     base_tolerance: float = 0.05
+    terminate_on_slip: bool = True
     randomize: bool = False
     rand_width: float | None = None
     rand_mass: float | None = None
@@ -125,6 +130,7 @@ class EnvOptions:
     rand_stiffness: float | None = None
     rand_damping: float | None = None
     rand_gains: float | None = None
+    rand_friction: float | None = None
     obs_noise: float | None = None
     goal_x_range_mm: float | None = None
     goal_theta_range_deg: float | None = None

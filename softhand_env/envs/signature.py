@@ -30,7 +30,11 @@ field                  meaning
 =====================  ====================================================================
 
 Hand parameters are *not* part of the signature: evaluating a policy on another hand (or
-under randomisation) is a legitimate experiment, not a mismatch.
+under randomisation) is a legitimate experiment, not a mismatch. Neither are the keywords that
+only decide when an episode ends or how it is rewarded (``terminate_on_success``,
+``terminate_on_slip``, the reward weights): they change no input or output of the model, so a
+model trained before slip termination existed still loads, and evaluating it with slip
+termination on measures whether its motions are physically possible.
 
 Example::
 

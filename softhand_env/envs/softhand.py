@@ -115,8 +115,12 @@ class SoftHandEnv(gym.Env):
     nothing is randomised. ``reset(seed=...)`` seeds ``np_random``, which draws (in order) the
     randomised parameters (``rand_*``, relative half-widths of object width, mass, inertia,
     Young's modulus, damping, PID gains; ``randomize=True`` applies a preset), the grasp
-    noise, the goal (uniform within ``goal_x_range_mm`` / ``goal_theta_range_deg``) and the
-    observation noise; a randomised draw whose grasp phase fails is redrawn (up to 10 times).
+    noise, the goal (uniform within ``goal_x_range_mm`` / ``goal_theta_range_deg``), the
+    friction coefficient (``rand_friction``) and the observation noise; a randomised draw
+    whose grasp phase fails is redrawn (up to 10 times). Randomisation ranges whose extremes
+    would make RK4 unstable at the 0.1 ms substep (e.g. ``rand_gains`` above 0.137 with the
+    other presets) raise ``ValueError`` at construction, naming the keyword and the limit; a
+    hand that is itself beyond the limit (``hand_overrides``) gets a ``RuntimeWarning``.
     ``reset`` raises :class:`~softhand_env.physics.PhysicsError` if the grasp phase itself ends
     in one of the failures of Episode End (e.g. ``grasp_setpoint_deg=(12, 12)`` over-compresses
     the fingertips; every draw failing with randomisation): that configuration cannot start
@@ -144,6 +148,24 @@ class SoftHandEnv(gym.Env):
       the episode ends, one in 20,000 steps); the chapter-4 handling process at grasp
       angles >= 6 deg goes past it (overshoot 4 % at 6 deg, 20 % at 7.2 deg): replay that
       with ``base_tolerance=math.inf``.
+    - ``tension``: a fingertip's normal contact impulse over the control step is negative:
+      the bilateral contact of the model pulled the object, which a real fingertip cannot.
+    - ``slip``: a fingertip's friction ratio over the control step exceeds the hand's
+      friction coefficient ``mu`` (below).
+
+    ``tension`` and ``slip`` are checked after the other failures (a step with one of
+    those reports it) and end the episode only with
+    ``terminate_on_slip=True`` (default); with False they are only reported in ``info``.
+
+    **Friction.** The model enforces rolling without slip and a bilateral normal contact; every
+    control step the environment checks that the contact could really hold:
+    ``info["friction_ratio"]`` (right and left fingertip) is |J_t| / J_n, the ratio of the
+    tangential to the normal contact impulse over the control step (the ratio of the mean
+    forces, so that the force spikes of a few 0.1 ms substeps after a set-point jump count with
+    their true weight; inf where J_n <= 0). Above the hand's friction coefficient ``mu``
+    (default 1.0, soft polyurethane on a dry rigid object; ``hand_overrides={"mu": 0.5}``,
+    randomised by ``rand_friction``) the step is a ``slip``. The paper's motions 1-8 need at
+    most 0.54.
 
     Every control step is classified (the residual over all its substeps, the rest at its end;
     the RK4 substeps stop at once on NaN or d_n outside [0, a)). With
@@ -155,8 +177,11 @@ class SoftHandEnv(gym.Env):
     ``info`` of every ``reset`` and ``step``: ``object_pose`` (x, y, theta; m, m, rad),
     ``deformation`` (d_n1, d_n2, d_t1, d_t2; m), ``constraint_error`` (max |C^H| in m, max
     |C^N| in m/s over the step; at reset: at the start state), ``grasped`` (both d_n > 0, state
-    valid), ``is_success``, ``setpoint`` (rad), ``physics_flags`` (kernel status bits), the
-    reward terms (0 at reset), ``goal`` (SI, goal tasks) and ``termination_reason``: None while
+    valid), ``is_success``, ``setpoint`` (rad), ``physics_flags`` (kernel status bits),
+    ``friction_ratio`` (shape (2,), see Friction), ``contact_impulse`` (J_n1, J_n2, J_t1,
+    J_t2 of the step; N s), ``tension`` (bool (2,), J_n < 0), the contact keys 0 / False at
+    reset, the reward terms (0 at reset), ``goal`` (SI, goal tasks) and
+    ``termination_reason``: None while
     the episode runs (at reset, on every step that does not terminate, and on a step that is
     only truncated), else the failure of the list above or ``"success"``. The native vector
     env reports the same values batched (``info["termination_reason"]`` an object array with
@@ -194,6 +219,7 @@ class SoftHandEnv(gym.Env):
     | `overcompression_ratio` | float | `0.5` | terminate when d_n >= ratio * a |
     | `ch_limit` | float | `0.001` | terminate when a holonomic residual exceeds this (m) |
     | `base_tolerance` | float | `0.05` | allowed overshoot of tan theta_p past the base (inf: off)|
+    | `terminate_on_slip` | bool | `True` | end the episode on slip or tension (False: report only)|
     | `randomize` | bool | `False` | preset for every `rand_*` / `obs_noise` left at None |
     | `rand_width` | float | `None` | object width, relative half-width (preset 0.03) |
     | `rand_mass` | float | `None` | object mass, relative half-width (preset 0.2) |
@@ -201,6 +227,7 @@ class SoftHandEnv(gym.Env):
     | `rand_stiffness` | float | `None` | Young's modulus E, relative half-width (preset 0.1) |
     | `rand_damping` | float | `None` | c_n and c_t, relative half-width (preset 0.2) |
     | `rand_gains` | float | `None` | Kp, Kd, Ki, relative half-width (preset 0.1) |
+    | `rand_friction` | float | `None` | friction coefficient mu, relative half-width (preset 0.2) |
     | `obs_noise` | float | `None` | observation noise std, scaled units (preset 0.01) |
     | `goal_x_range_mm` | float | `None` | x* ~ U(-r, r) (mm) |
     | `goal_theta_range_deg` | float | `None` | theta* ~ U(-r, r) (deg) |
@@ -222,6 +249,16 @@ class SoftHandEnv(gym.Env):
     - v0: initial release (chapter-5 model, Table 5.1 parameters); ``termination_reason`` in
       every ``info`` (None while the episode runs); ``reward_threshold`` registered for the
       goal tasks (max_episode_steps x goal_weight, see :func:`softhand_env.envs.register_envs`).
+    - v0, friction update: ``info["friction_ratio"]``, ``info["contact_impulse"]`` and
+      ``info["tension"]`` every step; termination reasons ``"slip"`` and ``"tension"``
+      (``terminate_on_slip=True`` by default; False restores the earlier episode ends while
+      still reporting); hand parameter ``mu`` (YAML key ``mu``, default 1.0) and
+      ``rand_friction`` (preset 0.2 with ``randomize=True``); randomisation ranges checked for
+      RK4 stability at construction (``ValueError``). With any ``rand_*`` active, each reset
+      draws one more uniform after the goal (the friction coefficient): seeded randomised
+      episodes keep their parameters, grasp noise and goal but draw different observation
+      noise. Models trained before the update keep loading (the env signature does not
+      include episode-end keywords).
     """
 
     metadata = {"render_modes": list(RENDER_MODES), "render_fps": 50}
@@ -244,6 +281,7 @@ class SoftHandEnv(gym.Env):
         overcompression_ratio: float = 0.5,
         ch_limit: float = 0.001,
         base_tolerance: float = 0.05,
+        terminate_on_slip: bool = True,
         randomize: bool = False,
         rand_width: float | None = None,
         rand_mass: float | None = None,
@@ -251,6 +289,7 @@ class SoftHandEnv(gym.Env):
         rand_stiffness: float | None = None,
         rand_damping: float | None = None,
         rand_gains: float | None = None,
+        rand_friction: float | None = None,
         obs_noise: float | None = None,
         goal_x_range_mm: float | None = None,
         goal_theta_range_deg: float | None = None,
@@ -285,6 +324,7 @@ class SoftHandEnv(gym.Env):
             overcompression_ratio=overcompression_ratio,
             ch_limit=ch_limit,
             base_tolerance=base_tolerance,
+            terminate_on_slip=terminate_on_slip,
             randomize=randomize,
             rand_width=rand_width,
             rand_mass=rand_mass,
@@ -292,6 +332,7 @@ class SoftHandEnv(gym.Env):
             rand_stiffness=rand_stiffness,
             rand_damping=rand_damping,
             rand_gains=rand_gains,
+            rand_friction=rand_friction,
             obs_noise=obs_noise,
             goal_x_range_mm=goal_x_range_mm,
             goal_theta_range_deg=goal_theta_range_deg,

@@ -127,7 +127,8 @@ def start_episode(
 ) -> EpisodeStart:
     """Draw and simulate the start of an episode (shared by the single and the vector env).
 
-    ``rng`` draws, in this order: randomised parameters, grasp set-point noise, the goal. A
+    ``rng`` draws, in this order: randomised parameters of the dynamics, grasp set-point noise,
+    the goal, the randomised friction coefficient (it does not change the grasp phase). A
     randomised draw whose grasp phase fails (lost grasp, over-compression) is redrawn, up to
     :data:`MAX_DRAWS` times; then (and at once without randomisation) ``PhysicsError`` is raised.
 
@@ -172,4 +173,5 @@ def start_episode(
                     f"goal {target.name} = {float(g)!r} is outside the task's range "
                     f"[-{target.goal_range:g}, {target.goal_range:g}] (SI units)"
                 )
+    params = cfg.randomization.sample_friction(params, rng)
     return EpisodeStart(params, u0, goal, y)

@@ -5,7 +5,7 @@ per-episode arrays around it (goals, observations, reward terms, info values). O
 is :meth:`EpisodeBatch.step`::
 
     actions -> set-points -> physics.step (kernel, rollback, failure classification)
-            -> task.evaluate -> observation -> info values
+            -> contact check (slip, tension) -> task.evaluate -> observation -> info values
 
 :class:`~softhand_env.envs.SoftHandEnv` is N = 1 of it (its ``info`` is row 0 of
 :meth:`EpisodeBatch.info_values`); :class:`~softhand_env.envs.SoftHandVectorEnv` is N
@@ -23,6 +23,7 @@ import numpy as np
 from softhand_env.envs.config import EnvConfig
 from softhand_env.envs.observation import add_frame_noise, observe_rows
 from softhand_env.envs.start import start_episode
+from softhand_env.physics import friction
 from softhand_env.physics.hand import HandPhysics
 
 
@@ -76,6 +77,14 @@ class EpisodeBatch:
         max |C^H| (m), max |C^N| (m/s) of the last step (at a reset: of the start state).
     flags : ndarray of int64, shape (N,)
         Kernel status flags of the last step (0 after a reset).
+    mu : ndarray, shape (N,)
+        Friction coefficient of every episode (randomised by ``rand_friction``).
+    contact_impulse : ndarray, shape (N, 4)
+        Contact impulses (J_n1, J_n2, J_t1, J_t2) of the last step (N s; 0 after a reset).
+    friction_ratio : ndarray, shape (N, 2)
+        |J_t| / J_n per finger of the last step (inf where J_n <= 0; 0 after a reset).
+    tension : ndarray of bool, shape (N, 2)
+        Fingers whose normal impulse of the last step was negative (False after a reset).
     grasped, success : ndarray of bool, shape (N,)
     reason : ndarray of object, shape (N,)
         Termination reason of the last step (a failure name or ``"success"``), else None.
@@ -92,12 +101,18 @@ class EpisodeBatch:
             ch_limit=cfg.ch_limit,
             dn_limit=cfg.dn_limit,
             base_limit=cfg.base_limit,
+            # checked once by build_config, with the corners of the randomisation ranges
+            check_stability=False,
         )
         self.goal = np.zeros((n, cfg.task.goal_dim))
         self.obs = np.zeros((n, cfg.layout.size), dtype=np.float32)
         self.terms = np.zeros((len(cfg.task.terms), n))
         self.constraint_error = np.zeros((n, 2))
         self.flags = np.zeros(n, dtype=np.int64)
+        self.mu = np.full(n, cfg.params.mu)
+        self.contact_impulse = np.zeros((n, 4))
+        self.friction_ratio = np.zeros((n, 2))
+        self.tension = np.zeros((n, 2), dtype=bool)
         self.grasped = np.zeros(n, dtype=bool)
         self.success = np.zeros(n, dtype=bool)
         self.reason = np.full(n, None, dtype=object)
@@ -120,8 +135,12 @@ class EpisodeBatch:
         start = start_episode(self.cfg, _generator((rng,), 0), goal)
         self.physics.reset_hand(i, start.state, start.setpoint, start.params)
         self.goal[i] = start.goal
+        self.mu[i] = start.params.mu
         self.terms[:, i] = 0.0
         self.flags[i] = 0
+        self.contact_impulse[i] = 0.0
+        self.friction_ratio[i] = 0.0
+        self.tension[i] = False
         self.reason[i] = None
         self._refresh_goal_columns()
 
@@ -209,6 +228,9 @@ class EpisodeBatch:
         u, ctrl = cfg.actions.setpoints(actions, self._r.setpoint)  # the last commanded
         status = self.physics.step(u, cfg.n_substeps, strict=False, skip=skip).hands
         failed, grasped = status.failed, status.grasped
+        contact = self._check_contact(status.impulse, failed, skip)
+        if cfg.terminate_on_slip:
+            failed = failed | contact
         r = self._r = self.physics.readouts()
         terms, success = self._evaluate(r.object_pose, ctrl, failed, grasped)
         if n == 1:
@@ -221,6 +243,9 @@ class EpisodeBatch:
         self.constraint_error[:] = status._diag[:, :2]
         terminated = failed | (self.success & self.task.terminate_on_success)
         self.reason[:] = status.reason
+        if cfg.terminate_on_slip and contact.any():
+            for k in np.flatnonzero(contact):
+                self.reason[k] = "tension" if self.tension[k].any() else "slip"
         if self.task.terminate_on_success:
             self.reason[terminated & ~failed] = "success"
         # observations: shift the history, write the newest frames
@@ -236,6 +261,23 @@ class EpisodeBatch:
                 add_frame_noise(self.obs[i, :f], noise, _generator(rngs, i))
         return self.terms.sum(axis=0), terminated
 
+    def _check_contact(
+        self, impulse: np.ndarray, failed: np.ndarray, skip: np.ndarray | None
+    ) -> np.ndarray:
+        """Record the step's contact impulses (N, 4), friction ratios and tension; return
+        bool (N,): environments whose contact pulled or needed more friction than their mu,
+        among those not failed otherwise (and not skipped). A diverged step (rolled back) may
+        carry non-finite impulses: they read 0 (its ratio inf), so info holds no NaN."""
+        if not np.isfinite(impulse).all():
+            impulse = np.where(np.isfinite(impulse), impulse, 0.0)
+        self.contact_impulse[:] = impulse
+        self.friction_ratio[:] = friction.friction_ratio(impulse)
+        self.tension[:] = friction.tension(impulse)
+        bad = (self.friction_ratio > self.mu[:, None]).any(axis=1) & ~failed
+        if skip is not None:
+            bad &= ~skip
+        return bad
+
     # ------------------------------------------------------------------------------- info
     def info_values(self) -> dict[str, np.ndarray]:
         """Per-environment info values (row i is environment i's ``info``), in key order.
@@ -243,9 +285,12 @@ class EpisodeBatch:
         ``object_pose`` (N, 3) (x, y, theta; m, m, rad), ``deformation`` (N, 4) (d_n1, d_n2,
         d_t1, d_t2; m), ``constraint_error`` (N, 2) (max |C^H| in m, max |C^N| in m/s over the
         step), ``grasped`` (N,), ``is_success`` (N,), ``setpoint`` (N, 2) (rad),
-        ``physics_flags`` (N,) (kernel status bits), ``termination_reason`` (N,) (None while
-        the episode runs), ``goal`` (N, goal_dim) for goal tasks, then the reward terms (N,).
-        Fresh arrays.
+        ``physics_flags`` (N,) (kernel status bits), ``friction_ratio`` (N, 2) (|J_t| / J_n
+        per finger over the step; inf where J_n <= 0), ``contact_impulse`` (N, 4) (J_n1, J_n2,
+        J_t1, J_t2; N s), ``tension`` (N, 2) (bool: J_n < 0), ``termination_reason`` (N,)
+        (None while the episode runs), ``goal`` (N, goal_dim) for goal tasks, then the reward
+        terms (N,). The three contact keys are 0 / False at a reset (no step taken). Fresh
+        arrays.
         """
         return {key: value.copy() for key, value in self._info_arrays().items()}
 
@@ -263,6 +308,9 @@ class EpisodeBatch:
             "is_success": bool(self.success[i]),
             "setpoint": r.setpoint[i],
             "physics_flags": int(self.flags[i]),
+            "friction_ratio": self.friction_ratio[i].copy(),
+            "contact_impulse": self.contact_impulse[i].copy(),
+            "tension": self.tension[i].copy(),
             "termination_reason": self.reason[i],
         }
         if self.task.goal_dim:
@@ -282,6 +330,9 @@ class EpisodeBatch:
             "is_success": self.success,
             "setpoint": r.setpoint,
             "physics_flags": self.flags,
+            "friction_ratio": self.friction_ratio,
+            "contact_impulse": self.contact_impulse,
+            "tension": self.tension,
             "termination_reason": self.reason,
         }
         if self.task.goal_dim:

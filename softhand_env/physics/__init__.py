@@ -4,8 +4,10 @@
 :mod:`.model` (chapter-5 dynamic model as compiled functions) -> :mod:`.integrate` (RK
 tableaus) / :mod:`.kernel` (compiled RK4 kernels, one system or N in lanes) ->
 :mod:`.failure` (failure classification) -> :mod:`.hand` (:class:`HandPhysics`: N hands,
-stepping, rollback, named read-outs); :mod:`.reference` is an independent plain-NumPy model for
-cross-checks.
+stepping, rollback, named read-outs); beside them :mod:`.friction` (friction ratio, tension and
+slip from the contact impulses), :mod:`.stability` (a-priori RK4 stability check) and
+:mod:`.validity` (validated range of the contact model); :mod:`.reference` is an independent
+plain-NumPy model for cross-checks.
 
 The names of :mod:`.hand` are available here (``from softhand_env.physics import
 HandPhysics``); they are imported on first use, so that importing a light submodule such as

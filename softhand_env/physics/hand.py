@@ -17,14 +17,12 @@ read-out and status field a leading hand axis (``object_pose`` is (N, 3)).
 
 from __future__ import annotations
 
-import math
-import warnings
 from typing import Any, NamedTuple
 
 import numpy as np
 from numba import njit
 
-from softhand_env.physics import kernel
+from softhand_env.physics import friction, kernel
 from softhand_env.physics.failure import REASONS, classify
 from softhand_env.physics.model import (
     DN_1,
@@ -41,6 +39,15 @@ from softhand_env.physics.model import (
     pid_torques_batch,
 )
 from softhand_env.physics.params import HandParams
+
+# the a-priori RK4 stability check lives in softhand_env.physics.stability; these names stay
+# importable from here
+from softhand_env.physics.stability import (  # noqa: F401
+    RK4_REAL_STABILITY,
+    check_rk4_stability,
+    rk4_stability_margins,
+    warn_if_unstable,
+)
 
 
 class PhysicsError(RuntimeError):
@@ -63,63 +70,6 @@ FLAG_NAMES = {
 def describe_flags(flags: int) -> list[str]:
     """Names of the status flags set in ``flags`` (see :mod:`softhand_env.physics.kernel`)."""
     return [name for bit, name in FLAG_NAMES.items() if flags & bit]
-
-
-#: Extent of classic RK4's stability region on the negative real axis (|h lambda| <= 2.785).
-RK4_REAL_STABILITY = 2.785
-
-
-def rk4_stability_margins(params: HandParams) -> dict[str, float]:
-    """|lambda| dt of the stiffest modes of the model, to compare with RK4's limit 2.785.
-
-    Modes: the holonomic Baumgarte dynamics (double root -alpha), the non-holonomic one
-    (-beta), and the compression and bending modes of a fingertip at d_n = a/2 (stiffness
-    2 pi E d_n / cos^2 theta_p with theta_p = 0, resp. 2 k_b pi E d_n, on the deformation
-    inertia with the viscous damping c_n, c_t). Joint modes are left out: through the
-    constraints the fingers carry the deformation inertia, which keeps them far from the
-    limit for any plausible gains.
-
-    Returns
-    -------
-    dict
-        Mode name -> |lambda|_max * dt (dimensionless).
-    """
-
-    def fastest_root(m: float, c: float, k: float) -> float:
-        disc = c * c - 4.0 * m * k
-        if disc >= 0:
-            return (c + math.sqrt(disc)) / (2.0 * m)
-        return math.sqrt(k / m)
-
-    dn = params.a / 2
-    k_n = 2.0 * math.pi * params.E * dn
-    k_t = 2.0 * params.bending * math.pi * params.E * dn
-    m = params.m_deform
-    return {
-        "holonomic (alpha)": params.alpha * params.dt,
-        "non-holonomic (beta)": params.beta * params.dt,
-        "compression": fastest_root(m, params.c_n, k_n) * params.dt,
-        "bending": fastest_root(m, params.c_t, k_t) * params.dt,
-    }
-
-
-def check_rk4_stability(params: HandParams) -> list[str]:
-    """Names of the modes whose |lambda| dt exceeds RK4's stability limit (empty if none)."""
-    return [k for k, v in rk4_stability_margins(params).items() if v > RK4_REAL_STABILITY]
-
-
-def warn_if_unstable(params: HandParams, stacklevel: int = 2) -> None:
-    """Emit a ``RuntimeWarning`` naming the modes beyond RK4's stability limit, if any."""
-    unstable = check_rk4_stability(params)
-    if unstable:
-        margins = rk4_stability_margins(params)
-        detail = ", ".join(f"{k}: |lambda| dt = {margins[k]:.2f}" for k in unstable)
-        warnings.warn(
-            f"RK4 step dt = {params.dt:g} s is beyond the stability limit "
-            f"({RK4_REAL_STABILITY}) of the {detail}; expect divergence (reduce dt)",
-            RuntimeWarning,
-            stacklevel=stacklevel + 1,
-        )
 
 
 _REASON_NAMES = np.array((None, *REASONS), dtype=object)
@@ -150,6 +100,15 @@ class StepStatus:
         Both d_n > 0 and the state did not diverge.
     reason : str, None or ndarray of object
         Name of the failure reported (:data:`~softhand_env.physics.failure.REASONS`), None if none.
+    impulse : ndarray, shape (4,) or (N, 4)
+        Contact impulses over the substeps taken (N s): normal J_n1, J_n2 (integral of the
+        holonomic multipliers; > 0 pushes the fingertip into the object), tangential J_t1,
+        J_t2 (integral of the rolling multipliers), see :mod:`softhand_env.physics.friction`.
+        Zero for a hand skipped this step.
+    friction_ratio : ndarray, shape (2,) or (N, 2)
+        |J_t| / J_n per finger over the step (dimensionless; inf where J_n <= 0).
+    tension : ndarray of bool, shape (2,) or (N, 2)
+        True per finger whose normal impulse over the step is negative (the contact pulled).
     """
 
     __slots__ = ("_flags", "_diag", "_failed", "_grasped", "_reason", "_batched")
@@ -180,6 +139,19 @@ class StepStatus:
     @property
     def substeps(self) -> Any:
         return self._hand(self._diag[:, 2].astype(np.int64))
+
+    @property
+    def impulse(self) -> np.ndarray:
+        imp = self._diag[:, kernel.IMPULSE_OFFSET : kernel.IMPULSE_OFFSET + 4].copy()
+        return imp if self._batched else imp[0]
+
+    @property
+    def friction_ratio(self) -> np.ndarray:
+        return friction.friction_ratio(self.impulse)
+
+    @property
+    def tension(self) -> np.ndarray:
+        return friction.tension(self.impulse)
 
     @property
     def max_ch(self) -> Any:
@@ -228,7 +200,7 @@ def _step_on_this_thread(Y, U, PRM, TIME, n, ch_limit, dn_limit, base_limit):
     N = Y.shape[0]
     y_prev = Y.copy()
     flags = np.zeros(N, dtype=np.int64)
-    diag = np.zeros((N, 3))
+    diag = np.zeros((N, kernel.N_STEP_DIAG))
     kernel.advance_batch_serial(Y, U, PRM, n, ch_limit, diag, flags)
     failed, grasped, reason = _finish_step(flags, Y, y_prev, PRM, diag, TIME, ch_limit,
                                            dn_limit, base_limit)
@@ -478,7 +450,7 @@ class HandPhysics:
             flags = np.zeros(self._n, dtype=np.int64)
             if skip is not None:
                 flags[skip] = kernel.FLAG_SKIP
-            diag = np.zeros((self._n, 3))
+            diag = np.zeros((self._n, kernel.N_STEP_DIAG))
             kernel.advance_batch(self._y, self._u, self._prm, n, self.ch_limit, diag, flags)
             failed, grasped, reason = _finish_step(
                 flags, self._y, y_prev, self._prm, diag, self._time, self.ch_limit,

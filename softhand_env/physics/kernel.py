@@ -26,6 +26,25 @@ flag                   value  meaning
 
 Integration stops at the substep where a fatal flag is raised, leaving the state at that
 substep; the number of substeps actually taken is returned.
+
+Diagnostics of a call (``diag``, one row per system in the batch):
+
+=====  =============================================================================
+entry  content
+=====  =============================================================================
+0      largest |C^H| (m) over the states visited
+1      largest |C^N| (m/s) over the states visited
+2      substeps taken (a row of at least 3 entries)
+3-4    normal contact impulses J_n1, J_n2 (N s; integral of the holonomic multipliers
+       lambda_H) over the substeps taken (a row of :data:`N_STEP_DIAG` = 7 entries)
+5-6    tangential contact impulses J_t1, J_t2 (N s; integral of the rolling multipliers
+       lambda_N) over the substeps taken (a row of 7 entries)
+=====  =============================================================================
+
+Each substep adds h/6 (lambda_1 + 2 lambda_2 + 2 lambda_3 + lambda_4) of its four RK4 stages
+to the impulses: the quadrature with which RK4 applies those forces to the momenta, so the
+impulse is exactly what the integrator transferred through the contact. Shorter rows receive
+the entries they have room for (2: residuals only; 3: residuals and substeps).
 """
 
 from __future__ import annotations
@@ -57,14 +76,20 @@ FLAG_OVERCOMPRESSED = 8
 FLAG_BASE = 16
 FLAG_SKIP = 32
 FATAL_FLAGS = FLAG_NONFINITE | FLAG_CONSTRAINT | FLAG_LOST | FLAG_OVERCOMPRESSED
+#: Length of a ``diag`` row that receives the contact impulses (see the module docstring).
+N_STEP_DIAG = 7
+#: Offset of the contact impulses (J_n1, J_n2, J_t1, J_t2) in a diag row of N_STEP_DIAG entries.
+IMPULSE_OFFSET = 3
+# offset of the constraint forces (lambda_H1, lambda_H2, lambda_N1, lambda_N2) in csm_rhs's diag
+_W_LAM = 6
 #: Default bound on |C^H| (m) above which the state counts as diverged.
 CH_LIMIT = 1e-3
 
 
 @njit(cache=True)
-def _rk4_substep(y, u, prm, h, k, work):
+def _rk4_substep(y, u, prm, h, k, work, imp):
     """One classic RK4 step of :func:`csm_rhs` in place; ``k`` is (5, NY) scratch, ``work`` the
-    (N_DIAG,) diagnostics of the stage-1 evaluation.
+    (N_DIAG,) diagnostics scratch; adds the step's contact impulses to ``imp`` (4,).
 
     Returns (|C^H|max, |C^N|max) evaluated at the state the step starts from (stage 1).
     """
@@ -76,18 +101,31 @@ def _rk4_substep(y, u, prm, h, k, work):
     csm_rhs(y, u, prm, k1, work)
     ch = max(abs(work[0]), abs(work[1]))
     cn = max(abs(work[2]), abs(work[3]))
+    l1 = (work[_W_LAM], work[_W_LAM + 1], work[_W_LAM + 2], work[_W_LAM + 3])
     for j in range(NY):
         tmp[j] = y[j] + 0.5 * h * k1[j]
     csm_rhs(tmp, u, prm, k2, work)
+    l2 = (work[_W_LAM], work[_W_LAM + 1], work[_W_LAM + 2], work[_W_LAM + 3])
     for j in range(NY):
         tmp[j] = y[j] + 0.5 * h * k2[j]
     csm_rhs(tmp, u, prm, k3, work)
+    l3 = (work[_W_LAM], work[_W_LAM + 1], work[_W_LAM + 2], work[_W_LAM + 3])
     for j in range(NY):
         tmp[j] = y[j] + h * k3[j]
     csm_rhs(tmp, u, prm, k4, work)
     for j in range(NY):
         y[j] += h / 6.0 * (k1[j] + 2.0 * k2[j] + 2.0 * k3[j] + k4[j])
+    for j in range(4):
+        imp[j] += h / 6.0 * (l1[j] + 2.0 * l2[j] + 2.0 * l3[j] + work[_W_LAM + j])
     return ch, cn
+
+
+@njit(cache=True)
+def _store_impulse(diag, imp):
+    """Copy the impulses (4,) into entries 3-6 of ``diag`` if it has room for them."""
+    if diag.shape[0] >= N_STEP_DIAG:
+        for j in range(4):
+            diag[IMPULSE_OFFSET + j] = imp[j]
 
 
 @njit(cache=True)
@@ -186,8 +224,9 @@ def _advance_one(y, u, prm, n, ch_limit, diag, k, work):
     cn_max = 0.0
     flags = 0
     done = 0
+    imp = np.zeros(4)
     for _ in range(n):
-        ch, cn = _rk4_substep(y, u, prm, h, k, work)
+        ch, cn = _rk4_substep(y, u, prm, h, k, work, imp)
         ch_max = max(ch_max, ch)
         cn_max = max(cn_max, cn)
         done += 1
@@ -202,6 +241,7 @@ def _advance_one(y, u, prm, n, ch_limit, diag, k, work):
         diag[1] = cn_max
     if diag.shape[0] > 2:
         diag[2] = done
+    _store_impulse(diag, imp)
     return flags, done
 
 
@@ -221,9 +261,11 @@ def advance(y, u, prm, n, ch_limit, diag):
         Number of substeps.
     ch_limit : float
         |C^H| (m) above which the state is flagged as diverged.
-    diag : ndarray, shape (2,) or (3,), output
+    diag : ndarray, shape (2,), (3,) or (N_STEP_DIAG,), output
         max |C^H| (m) and max |C^N| (m/s) over the states visited; a third entry, if present,
-        receives the number of substeps taken.
+        receives the number of substeps taken; with N_STEP_DIAG = 7 entries, entries 3-6 also
+        receive the contact impulses J_n1, J_n2, J_t1, J_t2 (N s) over the substeps taken
+        (module doc).
 
     Returns
     -------
@@ -254,9 +296,11 @@ LANES = 16
 # rows of the per-block parameter array: the packed parameters, then the two set-points
 _R_U = N_PARAMS
 _NPU = N_PARAMS + 2
-# rows of a stage-derivative array: dy/dt (NY), then C^H (2) and C^N (2) of that stage
+# rows of a stage-derivative array: dy/dt (NY), then C^H (2) and C^N (2) of that stage, then
+# the constraint forces lambda_H1, lambda_H2, lambda_N1, lambda_N2 of that stage
 _R_RES = NY
-_NK = NY + 4
+_R_LAM = NY + 4
+_NK = NY + 8
 # blocks of at most this many systems run the single-system kernel instead (a lane costs
 # ~1/4 of a scalar system; a half block of 8 lanes then costs more than 2 systems)
 _SCALAR_MAX = 2
@@ -308,11 +352,16 @@ def _rhs_lanes(Yl, Pl, Kl, nl):
         Kl[(_R_RES + 1) * LANES + l] = t[12]
         Kl[(_R_RES + 2) * LANES + l] = t[13]
         Kl[(_R_RES + 3) * LANES + l] = t[14]
+        Kl[(_R_LAM + 0) * LANES + l] = t[17]
+        Kl[(_R_LAM + 1) * LANES + l] = t[18]
+        Kl[(_R_LAM + 2) * LANES + l] = t[19]
+        Kl[(_R_LAM + 3) * LANES + l] = t[20]
 
 
 @njit(cache=True, error_model="numpy")
-def _rk4_lanes(Yl, Pl, Hl, K1, K2, K3, K4, Tl, nl):
-    """One RK4 substep of every lane in place, with the combinations of :func:`_rk4_substep`.
+def _rk4_lanes(Yl, Pl, Hl, K1, K2, K3, K4, Tl, Il, nl):
+    """One RK4 substep of every lane in place, with the combinations of :func:`_rk4_substep`;
+    adds the contact impulses of the substep to ``Il`` (4*LANES).
 
     ``Hl`` (NY*LANES) holds each lane's step h in every row, so that the combinations are
     flat unit-stride loops over all LANES lanes (lanes >= nl have zero derivatives and stay).
@@ -329,6 +378,9 @@ def _rk4_lanes(Yl, Pl, Hl, K1, K2, K3, K4, Tl, nl):
     _rhs_lanes(Tl, Pl, K4, nl)
     for i in range(NY * LANES):
         Yl[i] += Hl[i] / 6.0 * (K1[i] + 2.0 * K2[i] + 2.0 * K3[i] + K4[i])
+    o = _R_LAM * LANES
+    for i in range(4 * LANES):
+        Il[i] += Hl[i] / 6.0 * (K1[o + i] + 2.0 * K2[o + i] + 2.0 * K3[o + i] + K4[o + i])
 
 
 @njit(cache=True, error_model="numpy")
@@ -348,6 +400,14 @@ def _lanes_suspect(Yl, Pl, CHM, CNM, K1, nl):
         )
         count += 1 if bad else 0
     return count
+
+
+@njit(cache=True)
+def _store_lane_impulse(diag, Il, l):
+    """:func:`_store_impulse` of lane ``l`` of the block accumulator ``Il`` (4*LANES)."""
+    if diag.shape[0] >= N_STEP_DIAG:
+        for j in range(4):
+            diag[IMPULSE_OFFSET + j] = Il[j * LANES + l]
 
 
 @njit(cache=True)
@@ -375,6 +435,7 @@ def _advance_block(Y, U, PRM, n, ch_limit, DIAG, FLAGS, systems):
     Hl = np.empty(NY * LANES)
     CHM = np.zeros(LANES)
     CNM = np.zeros(LANES)
+    Il = np.zeros(4 * LANES)
     live = np.zeros(LANES, dtype=np.bool_)
     for l in range(LANES):
         s = systems[min(l, m - 1)]
@@ -389,7 +450,7 @@ def _advance_block(Y, U, PRM, n, ch_limit, DIAG, FLAGS, systems):
             Hl[j * LANES + l] = PRM[s, P_DT]
     n_live = m
     for step in range(n):
-        _rk4_lanes(Yl, Pl, Hl, K1, K2, K3, K4, Tl, nl)
+        _rk4_lanes(Yl, Pl, Hl, K1, K2, K3, K4, Tl, Il, nl)
         if _lanes_suspect(Yl, Pl, CHM, CNM, K1, nl) == 0:
             continue
         # some lane may carry a fatal flag: stop those (state, diag and flags of that substep)
@@ -407,6 +468,7 @@ def _advance_block(Y, U, PRM, n, ch_limit, DIAG, FLAGS, systems):
                 DIAG[s, 1] = CNM[l]
                 if DIAG.shape[1] > 2:
                     DIAG[s, 2] = step + 1
+                _store_lane_impulse(DIAG[s], Il, l)
                 live[l] = False
                 n_live -= 1
         if n_live == 0:
@@ -424,6 +486,8 @@ def _advance_block(Y, U, PRM, n, ch_limit, DIAG, FLAGS, systems):
                     Pl[j * LANES + l] = Pl[j * LANES + src]
                 for j in range(NY):
                     Hl[j * LANES + l] = Hl[j * LANES + src]
+                for j in range(4):
+                    Il[j * LANES + l] = Il[j * LANES + src]
     if n_live == 0:
         return
     k = np.empty((5, NY))
@@ -437,6 +501,7 @@ def _advance_block(Y, U, PRM, n, ch_limit, DIAG, FLAGS, systems):
             FLAGS[s] = _finish(y, U[s], PRM[s], CHM[l], CNM[l], ch_limit, DIAG[s], k, work)
             if DIAG.shape[1] > 2:
                 DIAG[s, 2] = n
+            _store_lane_impulse(DIAG[s], Il, l)
 
 
 @njit(cache=True)
@@ -515,9 +580,11 @@ def advance_batch(
         Packed parameters per system (may be a broadcast view of one vector).
     n : int
     ch_limit : float
-    DIAG : ndarray, shape (N, 2) or (N, 3), output
+    DIAG : ndarray, shape (N, 2), (N, 3) or (N, N_STEP_DIAG), output
         max |C^H| (m), max |C^N| (m/s) per system; a third column, if present, receives the
-        substeps taken (< n only for a system stopped by a fatal flag).
+        substeps taken (< n only for a system stopped by a fatal flag); with N_STEP_DIAG = 7
+        columns, columns 3-6 also receive the contact impulses J_n1, J_n2, J_t1, J_t2 (N s)
+        of the call (module doc).
     FLAGS : ndarray of int64, shape (N,), output
         Status flags per system. On entry, systems carrying ``FLAG_SKIP`` or a fatal flag
         are skipped (their flags are kept); the others get their new flags.
@@ -533,10 +600,10 @@ def advance_batch_py(
 ) -> tuple[np.ndarray, np.ndarray]:
     """Convenience wrapper of :func:`advance_batch` that allocates the outputs.
 
-    Returns (DIAG (N, 2), FLAGS (N,)).
+    Returns (DIAG (N, N_STEP_DIAG): residuals and contact impulses, FLAGS (N,)).
     """
     N = Y.shape[0]
-    DIAG = np.zeros((N, 2))
+    DIAG = np.zeros((N, N_STEP_DIAG))
     FLAGS = np.zeros(N, dtype=np.int64)
     PRM = np.ascontiguousarray(np.broadcast_to(PRM, (N, PRM.shape[-1])))
     advance_batch(Y, U, PRM, n, ch_limit, DIAG, FLAGS)
@@ -552,6 +619,8 @@ __all__ = [
     "FLAG_NONFINITE",
     "FLAG_OVERCOMPRESSED",
     "FLAG_SKIP",
+    "IMPULSE_OFFSET",
+    "N_STEP_DIAG",
     "advance",
     "advance_batch",
     "advance_batch_serial",

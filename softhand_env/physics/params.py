@@ -37,7 +37,25 @@ YAML key             field       meaning (SI unit of the field)
                                  ``"printed"`` ((-1)^i as printed in Eq 5.5)
 ``bending_scale``    bending     dimensionless factor on the bending term d_n d_t^2 (1 = Eq
                                  5.5; large values hold d_t near zero, as in chapter 4)
+``mu``               mu          Coulomb friction coefficient fingertip/object (dimensionless);
+                                 the largest friction ratio |J_t| / J_n a contact can hold
+                                 (:mod:`softhand_env.physics.friction`); not used by the dynamics
 ===================  ==========  ============================================================
+
+Table 5.1 prints the PID gains (Kp = 300, Kd = 14, Ki = 0.1) without units; they are taken per
+radian of joint angle (N m/rad, N m s/rad, N m/(rad s)), as the YAML keys say. Read per degree
+(x 180/pi) the finger mode of the paper's own simulation at dt = 0.1 ms would be far beyond
+RK4's stability limit (:mod:`softhand_env.physics.stability`), so the per-radian reading is the one
+the paper's run supports.
+
+The friction coefficient is not in the dissertation. The default ``mu = 1.0`` is for its soft
+polyurethane-gel fingertips (E = 0.23-0.30 MPa, far softer than any cast urethane grade) on a
+dry, smooth rigid object: the dry friction of polyurethane elastomers rises as their hardness
+falls and is that of soft rubbers for the soft grades, about 1 and above (Gallagher
+Corporation, *Polyurethane Technical Data & Design Guide*, 2016, section "Coefficient of
+Friction"; soft rubber on dry smooth surfaces 1-2 in the common engineering tables). It is a
+stated assumption, not a measurement: randomise it, or set it to the value measured for
+another fingertip/object pair. The paper's motions need at most 0.54 (see the README).
 """
 
 from __future__ import annotations
@@ -88,6 +106,7 @@ class HandParams:
     dt: float = 1e-4
     cross_term: str = "uniform"
     bending: float = 1.0
+    mu: float = 1.0
 
     def __post_init__(self) -> None:
         for f in dataclasses.fields(self):
@@ -161,6 +180,7 @@ _RANGES: dict[str, tuple[float, float, bool]] = {
     "beta": (0.0, 1e7, False),
     "dt": (0.0, 1e-2, False),
     "bending": (0.0, 1e9, False),
+    "mu": (0.0, 10.0, False),
 }
 
 #: YAML key -> (HandParams field, multiply YAML value by this to get SI; None = no unit)
@@ -187,6 +207,7 @@ YAML_KEYS: dict[str, tuple[str, float | None]] = {
     "dt_ms": ("dt", 1e-3),
     "cross_term": ("cross_term", None),
     "bending_scale": ("bending", None),
+    "mu": ("mu", None),
 }
 _FIELD_TO_KEY = {field: key for key, (field, _) in YAML_KEYS.items()}
 

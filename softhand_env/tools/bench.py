@@ -56,7 +56,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     prm = model.pack_params(params)
     y0 = grasp_state(params)
     u = np.radians([20.0, -10.0])
-    diag = np.zeros(2)
+    diag = np.zeros(kernel.N_STEP_DIAG)
     dt = params.dt
     print(f"softhand-env kernel benchmark  (cores: {os.cpu_count()}, numba threads: "
           f"{numba.get_num_threads()}, batch lanes: {kernel.LANES}, RK4 dt = {dt * 1e3:g} ms)")
@@ -82,7 +82,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         Y0 = np.tile(y0, (N, 1))
         U = np.tile(u, (N, 1))
         PRM = np.tile(prm, (N, 1))
-        DIAG = np.zeros((N, 2))
+        DIAG = np.zeros((N, kernel.N_STEP_DIAG))
         FLAGS = np.zeros(N, dtype=np.int64)
         n_b = max(10, int(n * 64 / max(N, 64)) // 10 * 10)
         kernel.advance_batch(Y0.copy(), U, PRM, 10, 1e-3, DIAG, FLAGS)

@@ -38,7 +38,7 @@ def bench_kernel(steps: int, repeats: int) -> float:
 
     params = load_hand_params("paper_ch5")
     y, prm = initial_state(params), pack_params(params)
-    u, diag = np.radians([6.0, 6.0]), np.zeros(2)
+    u, diag = np.radians([6.0, 6.0]), np.zeros(kernel.N_STEP_DIAG)
     kernel.advance(y, u, prm, 200, kernel.CH_LIMIT, diag)
 
     def run() -> float:
