@@ -571,3 +571,19 @@ def test_reward_is_finite_at_the_edges_of_the_ranges():
         assert math.isfinite(reward) and all(math.isfinite(info[t]) for t in GOAL_TERMS)
         if terminated:
             env.reset()
+
+
+def test_a_failed_step_is_never_a_success():
+    """Success needs the object on the goal AND a step that did not fail: an episode that
+    ends over-compressed (or slipping) with the object within tolerance does not count."""
+    from softhand_env.envs.tasks import make_task
+
+    task = make_task("pose")
+    pose = (0.001, 0.075, 0.01)
+    goal = (0.001, 0.01)
+    ok = task.evaluate(pose, goal, 0.0, np.bool_(False), np.bool_(True))[1]
+    failed = task.evaluate(pose, goal, 0.0, np.bool_(True), np.bool_(True))[1]
+    assert ok and not failed
+    batch = task.evaluate(tuple(np.full(3, v) for v in pose), goal, np.zeros(3),
+                          np.array([False, True, False]), np.array([True, True, False]))[1]
+    np.testing.assert_array_equal(batch, [True, False, False])

@@ -259,6 +259,9 @@ class SoftHandEnv(gym.Env):
       episodes keep their parameters, grasp noise and goal but draw different observation
       noise. Models trained before the update keep loading (the env signature does not
       include episode-end keywords).
+    - v0, success update: ``is_success`` is False on a failed step (over-compression, slip,
+      tension, ...) even when the object happens to be within tolerance of the goal; before,
+      only ``grasped`` was required, so an episode ending in over-compression could count.
     """
 
     metadata = {"render_modes": list(RENDER_MODES), "render_fps": 50}

@@ -145,7 +145,10 @@ class Task:
         ctrl : float or ndarray (N,)
             |u_t - u_{t-1}|^2 / max_delta^2 (dimensionless).
         failed, grasped : bool or ndarray of bool
-            The step's failure classification (:class:`~softhand_env.physics.StepStatus`).
+            The step's failure classification (:class:`~softhand_env.physics.StepStatus`),
+            slip and tension included when they terminate. Success requires ``grasped`` and
+            not ``failed``: a step that over-compresses or slips never counts as success, even
+            with the object on the goal.
         """
         return (), False
 
@@ -207,7 +210,7 @@ class GoalTask(Task):
 
     def evaluate(self, pose, goal, ctrl, failed, grasped):
         err = 0.0
-        success = grasped
+        success = grasped & ~np.asarray(failed, dtype=bool)  # a failed step never succeeds
         for target, g in zip(self.targets, goal, strict=True):
             d = abs(pose[target.index] - g)
             err = err + d / target.scale
