@@ -148,3 +148,29 @@ def test_signature_ignores_slip_termination():
     a = env_signature(gym.make("SoftHandTranslate-v0"))
     b = env_signature(gym.make("SoftHandTranslate-v0", terminate_on_slip=False))
     assert a == b and "terminate_on_slip" not in a
+
+
+def test_contact_validated_follows_the_validated_box():
+    """info["contact_validated"] is the validated box of the contact model (d_n <= 0.4 a,
+    |theta_p| <= 30 deg), computed from the state the info reports; same in the vector env."""
+    import math
+
+    env = gym.make("SoftHandReorient-v0", action_mode="absolute", normalize_action=False)
+    _, info = env.reset(seed=0)
+    assert info["contact_validated"].shape == (2,) and info["contact_validated"].all()
+    # rotating both fingers far to one side tilts the contact angles beyond 30 deg
+    seen_outside = False
+    for _ in range(200):
+        u = info["setpoint"] + np.radians([0.9, -0.9])
+        _, _, term, trunc, info = env.step(u)
+        q = env.unwrapped.physics
+        th_obj = info["object_pose"][2]
+        fa = q.finger_angles
+        theta_p = np.array([fa[0] - th_obj, fa[1] + th_obj])
+        expect = (info["deformation"][:2] <= 0.4 * q.params.a) & (
+            np.abs(theta_p) <= math.radians(30.0))
+        np.testing.assert_array_equal(info["contact_validated"], expect)
+        seen_outside |= not info["contact_validated"].all()
+        if term or trunc:
+            break
+    assert seen_outside

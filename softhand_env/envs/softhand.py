@@ -180,7 +180,10 @@ class SoftHandEnv(gym.Env):
     valid), ``is_success``, ``setpoint`` (rad), ``physics_flags`` (kernel status bits),
     ``friction_ratio`` (shape (2,), see Friction), ``contact_impulse`` (J_n1, J_n2, J_t1,
     J_t2 of the step; N s), ``tension`` (bool (2,), J_n < 0), the contact keys 0 / False at
-    reset, the reward terms (0 at reset), ``goal`` (SI, goal tasks) and
+    reset, ``contact_validated`` (bool (2,): the fingertip is inside the range where the
+    contact model was validated by the paper's compression tests, d_n <= 8 mm and |theta_p|
+    <= 30 deg; outside it, up to the hard limits that end the episode (over-compression at
+    a/2, the fingertip base), the model extrapolates), the reward terms (0 at reset), ``goal`` (SI, goal tasks) and
     ``termination_reason``: None while
     the episode runs (at reset, on every step that does not terminate, and on a step that is
     only truncated), else the failure of the list above or ``"success"``. The native vector
@@ -262,6 +265,7 @@ class SoftHandEnv(gym.Env):
     - v0, success update: ``is_success`` is False on a failed step (over-compression, slip,
       tension, ...) even when the object happens to be within tolerance of the goal; before,
       only ``grasped`` was required, so an episode ending in over-compression could count.
+    - v0, validity update: ``info["contact_validated"]`` per fingertip.
     """
 
     metadata = {"render_modes": list(RENDER_MODES), "render_fps": 50}

@@ -23,7 +23,7 @@ import numpy as np
 from softhand_env.envs.config import EnvConfig
 from softhand_env.envs.observation import add_frame_noise, observe_rows
 from softhand_env.envs.start import start_episode
-from softhand_env.physics import friction
+from softhand_env.physics import friction, validity
 from softhand_env.physics.hand import HandPhysics
 
 
@@ -110,6 +110,7 @@ class EpisodeBatch:
         self.constraint_error = np.zeros((n, 2))
         self.flags = np.zeros(n, dtype=np.int64)
         self.mu = np.full(n, cfg.params.mu)
+        self.radius = np.full(n, cfg.params.a)
         self.contact_impulse = np.zeros((n, 4))
         self.friction_ratio = np.zeros((n, 2))
         self.tension = np.zeros((n, 2), dtype=bool)
@@ -136,6 +137,7 @@ class EpisodeBatch:
         self.physics.reset_hand(i, start.state, start.setpoint, start.params)
         self.goal[i] = start.goal
         self.mu[i] = start.params.mu
+        self.radius[i] = start.params.a
         self.terms[:, i] = 0.0
         self.flags[i] = 0
         self.contact_impulse[i] = 0.0
@@ -287,7 +289,8 @@ class EpisodeBatch:
         step), ``grasped`` (N,), ``is_success`` (N,), ``setpoint`` (N, 2) (rad),
         ``physics_flags`` (N,) (kernel status bits), ``friction_ratio`` (N, 2) (|J_t| / J_n
         per finger over the step; inf where J_n <= 0), ``contact_impulse`` (N, 4) (J_n1, J_n2,
-        J_t1, J_t2; N s), ``tension`` (N, 2) (bool: J_n < 0), ``termination_reason`` (N,)
+        J_t1, J_t2; N s), ``tension`` (N, 2) (bool: J_n < 0), ``contact_validated`` (N, 2)
+        (bool: fingertip inside the contact model's validated box), ``termination_reason`` (N,)
         (None while the episode runs), ``goal`` (N, goal_dim) for goal tasks, then the reward
         terms (N,). The three contact keys are 0 / False at a reset (no step taken). Fresh
         arrays.
@@ -311,6 +314,7 @@ class EpisodeBatch:
             "friction_ratio": self.friction_ratio[i].copy(),
             "contact_impulse": self.contact_impulse[i].copy(),
             "tension": self.tension[i].copy(),
+            "contact_validated": self._validated(slice(i, i + 1))[0],
             "termination_reason": self.reason[i],
         }
         if self.task.goal_dim:
@@ -318,6 +322,16 @@ class EpisodeBatch:
         for k, name in enumerate(self.task.terms):
             info[name] = float(self.terms[k, i])
         return info
+
+    def _validated(self, rows: slice) -> np.ndarray:
+        """bool (n, 2) for the environments of ``rows``: each fingertip inside the contact
+        model's validated box (d_n <= 8 mm of a = 20 mm, |theta_p| <= 30 deg; see
+        :mod:`softhand_env.physics.validity`)."""
+        r = self._r
+        th_obj = r.object_pose[rows, 2]
+        fa = r.finger_angles[rows]
+        theta_p = np.stack([fa[:, 0] - th_obj, fa[:, 1] + th_obj], axis=-1)
+        return validity.validated(r.deformation[rows, :2], theta_p, self.radius[rows, None])
 
     def _info_arrays(self) -> dict[str, np.ndarray]:
         """The arrays behind :meth:`info_values` (not copied: callers copy)."""
@@ -333,6 +347,7 @@ class EpisodeBatch:
             "friction_ratio": self.friction_ratio,
             "contact_impulse": self.contact_impulse,
             "tension": self.tension,
+            "contact_validated": self._validated(slice(None)),
             "termination_reason": self.reason,
         }
         if self.task.goal_dim:

@@ -56,13 +56,21 @@ def contact_state(y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return d_n, theta_p
 
 
+def validated(d_n: np.ndarray, theta_p: np.ndarray, a: float | np.ndarray) -> np.ndarray:
+    """True where a fingertip's compression ``d_n`` (m) and contact angle ``theta_p`` (rad),
+    both (..., 2), lie inside the validated box, for fingertip radius ``a`` (m; a float or an
+    array broadcasting against (..., 1)). Returns bool (..., 2)."""
+    return (np.asarray(d_n) <= VALIDATED_DN_FRACTION * np.asarray(a)) & (
+        np.abs(theta_p) <= VALIDATED_THETA_P)
+
+
 def within_validated_range(y: np.ndarray, params: HandParams) -> np.ndarray:
     """True per fingertip whose state lies inside the validated box (module docstring).
 
     ``y`` as in :func:`contact_state`; returns bool, shape (..., 2).
     """
     d_n, theta_p = contact_state(y)
-    return (d_n <= VALIDATED_DN_FRACTION * params.a) & (np.abs(theta_p) <= VALIDATED_THETA_P)
+    return validated(d_n, theta_p, params.a)
 
 
 def validity_report(y: np.ndarray, params: HandParams) -> dict[str, float | bool]:
