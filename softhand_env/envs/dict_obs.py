@@ -27,9 +27,12 @@ the object's pose: a blind policy must not read it (it is there for relabelling 
                                       and velocity, deformations (d_n1, d_n2, d_t1, d_t2),
                                       the randomised parameters as relative deviations from
                                       the nominal hand (0 without randomisation), goal error
+                                      (achieved - desired); scaled to O(1): positions / 30 mm,
+                                      angles / 30 deg, velocities / 0.1 m/s and / 5 rad/s,
+                                      d_n / 10 mm, d_t / 1 mm, deviations / 0.5
 
 for an asymmetric actor-critic (the critic reads ``privileged``, the actor does not). Both
-keywords together give the four keys of ``goal_obs`` plus ``privileged``.
+keywords together give the three keys of ``goal_obs`` plus ``privileged``.
 
 The same keywords work with the native vector env (``gym.make_vec(id, num_envs=N,
 vectorization_mode="vector_entry_point", goal_obs=True)``): :class:`VectorDictObservation`
