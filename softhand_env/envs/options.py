@@ -72,6 +72,8 @@ class EnvOptions:
         Kp, Kd, Ki, relative half-width (preset 0.1)
     obs_noise : float | None
         observation noise std, scaled units (preset 0.01)
+    setpoint_latency : int
+        largest set-point latency (control steps); each episode draws 0..this
     goal_x_range_mm : float | None
         x* ~ U(-r, r) (mm)
     goal_theta_range_deg : float | None
@@ -126,6 +128,7 @@ class EnvOptions:
     rand_damping: float | None = None
     rand_gains: float | None = None
     obs_noise: float | None = None
+    setpoint_latency: int = 0
     goal_x_range_mm: float | None = None
     goal_theta_range_deg: float | None = None
     x_tolerance_mm: float | None = None

@@ -51,6 +51,21 @@ class SoftHandEnv(gym.Env):
     | `SoftHandReorient-v0`   | `reorient`  | theta_obj to theta*         | 250 (5 s)         |
     | `SoftHandTranslate-v0`  | `translate` | x_obj to x*                 | 250 (5 s)         |
     | `SoftHandPose-v0`       | `pose`      | x_obj to x* and theta* both | 400 (8 s)         |
+    | `SoftHandReorientRandom-v0` | `reorient` | as Reorient, randomised | 250 (5 s)         |
+    | `SoftHandTranslateRandom-v0` | `translate` | as Translate, randomised | 250 (5 s)        |
+    | `SoftHandPoseRandom-v0` | `pose`      | as Pose, randomised         | 400 (8 s)         |
+
+    The ``Random`` ids are the top rung of the randomisation ladder (keywords in
+    :data:`softhand_env.envs.RANDOM_KWARGS`, each overridable): object width +-10 %, mass and
+    inertia +-50 %, Young's modulus +-30 %, damping +-30 %, PID gains +-30 %, observation
+    noise 0.01, a set-point latency of 0 or 1 control steps per episode, and the RK4 substep
+    halved to 0.05 ms (``hand_overrides={"dt": 5e-5}``: at 0.1 ms the lightest, softest,
+    least damped corner of these ranges puts the finger mode beyond RK4's stability limit;
+    at 0.05 ms every corner is stable, the gains up to +-40 %). Passing your own
+    ``hand_overrides`` replaces that dict: keep ``"dt": 5e-5`` in it. Post-grasp d_n over
+    these ranges: 4.9-9.7 mm (grasp phase at every corner of the box; tested), below the
+    10 mm limit a/2; the wider objects (about a third of the draws) start beyond the 8 mm up
+    to which the fingertip model was validated by the compression tests.
 
     ## Action Space
 
@@ -65,7 +80,11 @@ class SoftHandEnv(gym.Env):
     With ``action_mode="absolute", normalize_action=False`` the action space is
     ``Box(low, high, (2,), float32)`` with the joint range in rad and the action *is* the
     set-point pair in radians (used by scripted replay; the float64 values passed are used
-    unrounded). Out-of-range actions are clipped (to [-1, 1], then set-points to the joint
+    unrounded). With ``setpoint_latency`` = K > 0 each episode draws a latency L in 0..K
+    (uniform): the set-points commanded by an action take effect L control steps later, the
+    earlier ones staying applied meanwhile (delta actions and the control cost refer to the
+    commanded set-points; the physics, the observation's set-point entries and
+    ``info["setpoint"]`` show the applied ones). Out-of-range actions are clipped (to [-1, 1], then set-points to the joint
     range); NaN or inf raise ``ValueError``, as does a wrong shape; anything but real numbers
     (bool, int, float: complex, strings, dates, objects, masked arrays) raises ``TypeError``.
 
@@ -115,8 +134,8 @@ class SoftHandEnv(gym.Env):
     nothing is randomised. ``reset(seed=...)`` seeds ``np_random``, which draws (in order) the
     randomised parameters (``rand_*``, relative half-widths of object width, mass, inertia,
     Young's modulus, damping, PID gains; ``randomize=True`` applies a preset), the grasp
-    noise, the goal (uniform within ``goal_x_range_mm`` / ``goal_theta_range_deg``) and the
-    observation noise; a randomised draw whose grasp phase fails is redrawn (up to 10 times).
+    noise, the goal (uniform within ``goal_x_range_mm`` / ``goal_theta_range_deg``), the
+    set-point latency (only with ``setpoint_latency`` > 0) and the observation noise; a randomised draw whose grasp phase fails is redrawn (up to 10 times).
     ``reset`` raises :class:`~softhand_env.physics.PhysicsError` if the grasp phase itself ends
     in one of the failures of Episode End (e.g. ``grasp_setpoint_deg=(12, 12)`` over-compresses
     the fingertips; every draw failing with randomisation): that configuration cannot start
@@ -171,7 +190,7 @@ class SoftHandEnv(gym.Env):
     ``control_dt`` (0, 1] s and at most 100,000 substeps; ``grasp_duration`` [0, 10] s and at
     most 1,000,000 substeps; ``max_delta_deg`` [0.001, 30]; ``reset_noise_deg`` [0, 10];
     ``overcompression_ratio`` [0.001, 1]; ``ch_limit`` [1e-12, 1] m; ``base_tolerance``
-    [0, inf] (inf: off); ``rand_*`` [0, 1); ``obs_noise`` [0, 10); reward weights [0, 1e6];
+    [0, inf] (inf: off); ``rand_*`` [0, 1); ``obs_noise`` [0, 10); ``setpoint_latency`` [0, 10]; reward weights [0, 1e6];
     ``goal_x_range_mm``, ``x_tolerance_mm`` (0, 100]; ``x_scale_mm`` (0, 1000];
     ``goal_theta_range_deg``, ``theta_tolerance_deg`` (0, 90]; ``theta_scale_deg`` (0, 360];
     ``render_width``, ``render_height`` [16, 4096]. Every reward is finite within them.
@@ -202,6 +221,7 @@ class SoftHandEnv(gym.Env):
     | `rand_damping` | float | `None` | c_n and c_t, relative half-width (preset 0.2) |
     | `rand_gains` | float | `None` | Kp, Kd, Ki, relative half-width (preset 0.1) |
     | `obs_noise` | float | `None` | observation noise std, scaled units (preset 0.01) |
+    | `setpoint_latency` | int | `0` | largest set-point latency (control steps); each episode draws 0..this |
     | `goal_x_range_mm` | float | `None` | x* ~ U(-r, r) (mm) |
     | `goal_theta_range_deg` | float | `None` | theta* ~ U(-r, r) (deg) |
     | `x_tolerance_mm` | float | `None` | success tolerance on x (mm) |
@@ -221,7 +241,8 @@ class SoftHandEnv(gym.Env):
 
     - v0: initial release (chapter-5 model, Table 5.1 parameters); ``termination_reason`` in
       every ``info`` (None while the episode runs); ``reward_threshold`` registered for the
-      goal tasks (max_episode_steps x goal_weight, see :func:`softhand_env.envs.register_envs`).
+      goal tasks (max_episode_steps x goal_weight, see :func:`softhand_env.envs.register_envs`);
+      ``setpoint_latency`` keyword and the ``Random`` ids (randomisation ladder).
     """
 
     metadata = {"render_modes": list(RENDER_MODES), "render_fps": 50}
@@ -252,6 +273,7 @@ class SoftHandEnv(gym.Env):
         rand_damping: float | None = None,
         rand_gains: float | None = None,
         obs_noise: float | None = None,
+        setpoint_latency: int = 0,
         goal_x_range_mm: float | None = None,
         goal_theta_range_deg: float | None = None,
         x_tolerance_mm: float | None = None,
@@ -293,6 +315,7 @@ class SoftHandEnv(gym.Env):
             rand_damping=rand_damping,
             rand_gains=rand_gains,
             obs_noise=obs_noise,
+            setpoint_latency=setpoint_latency,
             goal_x_range_mm=goal_x_range_mm,
             goal_theta_range_deg=goal_theta_range_deg,
             x_tolerance_mm=x_tolerance_mm,

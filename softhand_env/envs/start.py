@@ -131,12 +131,15 @@ class EpisodeStart:
         Goal (SI units).
     state : ndarray, shape (20,)
         Start state.
+    latency : int
+        Set-point latency of the episode (control steps; 0 unless ``setpoint_latency``).
     """
 
     params: HandParams
     setpoint: np.ndarray
     goal: np.ndarray
     state: np.ndarray
+    latency: int = 0
 
 
 def start_episode(
@@ -146,7 +149,8 @@ def start_episode(
 ) -> EpisodeStart:
     """Draw and simulate the start of an episode (shared by the single and the vector env).
 
-    ``rng`` draws, in this order: randomised parameters, grasp set-point noise, the goal. A
+    ``rng`` draws, in this order: randomised parameters, grasp set-point noise, the goal, then
+    (only with ``setpoint_latency`` > 0) the episode's set-point latency. A
     randomised draw whose grasp phase fails (lost grasp, over-compression) is redrawn, up to
     :data:`MAX_DRAWS` times; then (and at once without randomisation) ``PhysicsError`` is raised.
 
@@ -192,4 +196,7 @@ def start_episode(
                     f"goal {target.name} = {float(g)!r} is outside the task's range "
                     f"[-{target.goal_range:g}, {target.goal_range:g}] (SI units)"
                 )
-    return EpisodeStart(params, u0, goal, y)
+    latency = 0
+    if cfg.setpoint_latency > 0:
+        latency = int(rng.integers(0, cfg.setpoint_latency + 1))
+    return EpisodeStart(params, u0, goal, y, latency)
