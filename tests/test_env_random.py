@@ -167,3 +167,15 @@ def test_latency_zero_keeps_todays_episodes():
 def test_latency_range_is_checked(bad):
     with pytest.raises(ValueError, match="setpoint_latency"):
         gym.make("SoftHandReorient-v0", setpoint_latency=bad)
+
+
+def test_every_corner_of_the_random_ranges_is_rk4_stable():
+    """With the stability check of the finger/PID modes (where the physics has it): every
+    corner of the Random ids' box is stable at their 0.05 ms substep, not at 0.1 ms."""
+    stability = pytest.importorskip("softhand_env.physics.stability")
+    widths = {k: RANDOM_KWARGS[k] for k in FIELDS if k in RANDOM_KWARGS}
+    groups = {k: FIELDS[k] for k in widths}
+    base = load_hand_params("paper_ch5", **RANDOM_KWARGS["hand_overrides"])
+    stability.check_randomization_ranges(base, groups, widths)
+    with pytest.raises(ValueError, match="rand_"):
+        stability.check_randomization_ranges(load_hand_params("paper_ch5"), groups, widths)

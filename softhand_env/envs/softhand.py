@@ -143,6 +143,14 @@ class SoftHandEnv(gym.Env):
     within the task's goal range (``ValueError`` otherwise). ``options`` must be None or a
     dict (``TypeError``) whose only key is ``"goal"`` (``ValueError`` listing the allowed keys).
 
+    Goal curriculum: ``env.unwrapped.task.set_goal_scale(s)``, s in (0, 1], draws the goals of
+    the following resets from s times the goal ranges (the same uniform draws, scaled; s = 1
+    is the default); the native vector env's N environments share the task, so one call
+    scales them all, autoresets included. Stable-Baselines3: ``agents.curriculum``
+    (``set_goal_scale(venv, s)`` on a ``DummyVecEnv`` or the native ``NativeVecEnv``,
+    ``GoalCurriculumCallback``). It is not a reset option, which would reach explicit resets
+    only, not the autoresets of vector envs.
+
     ## Episode End
 
     Termination (``terminated=True``, reason in ``info["termination_reason"]``) when the state
