@@ -42,6 +42,9 @@ ENV_IDS: dict[str, str] = {
     "SoftHandPoseRandom-v0": "pose",
 }
 
+#: The ids of the randomisation ladder's top rung (:data:`RANDOM_KWARGS`).
+RANDOM_IDS = tuple(i for i in ENV_IDS if i.endswith("Random-v0"))
+
 #: Keywords of the ``Random`` ids (the randomisation ladder's top rung), on top of the task:
 #: relative half-widths of the hand parameters, observation noise, a set-point latency of 0 or
 #: 1 control steps per episode, and the RK4 substep halved (0.05 ms), at which every corner of
@@ -94,7 +97,7 @@ def register_envs() -> None:
             vector_entry_point=VECTOR_ENTRY_POINT,
             max_episode_steps=int(config["max_episode_steps"]),
             reward_threshold=reward_threshold(config),
-            kwargs={"task": task, **(RANDOM_KWARGS if env_id.endswith("Random-v0") else {})},
+            kwargs={"task": task, **(RANDOM_KWARGS if env_id in RANDOM_IDS else {})},
         )
 
 
@@ -110,4 +113,12 @@ def __getattr__(name: str) -> Any:
     raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
 
-__all__ = ["ENV_IDS", "RANDOM_KWARGS", "SoftHandEnv", "SoftHandVectorEnv", "register_envs", "reward_threshold"]
+__all__ = [
+    "ENV_IDS",
+    "RANDOM_IDS",
+    "RANDOM_KWARGS",
+    "SoftHandEnv",
+    "SoftHandVectorEnv",
+    "register_envs",
+    "reward_threshold",
+]

@@ -73,7 +73,7 @@ class EnvOptions:
     obs_noise : float | None
         observation noise std, scaled units (preset 0.01)
     setpoint_latency : int
-        largest set-point latency (control steps); each episode draws 0..this
+        largest set-point latency (steps), drawn 0..this
     goal_x_range_mm : float | None
         x* ~ U(-r, r) (mm)
     goal_theta_range_deg : float | None

@@ -84,8 +84,9 @@ class SoftHandEnv(gym.Env):
     (uniform): the set-points commanded by an action take effect L control steps later, the
     earlier ones staying applied meanwhile (delta actions and the control cost refer to the
     commanded set-points; the physics, the observation's set-point entries and
-    ``info["setpoint"]`` show the applied ones). Out-of-range actions are clipped (to [-1, 1], then set-points to the joint
-    range); NaN or inf raise ``ValueError``, as does a wrong shape; anything but real numbers
+    ``info["setpoint"]`` show the applied ones). Out-of-range actions are clipped (to
+    [-1, 1], then set-points to the joint range); NaN or inf raise ``ValueError``, as does a
+    wrong shape; anything but real numbers
     (bool, int, float: complex, strings, dates, objects, masked arrays) raises ``TypeError``.
 
     ## Observation Space
@@ -135,7 +136,8 @@ class SoftHandEnv(gym.Env):
     randomised parameters (``rand_*``, relative half-widths of object width, mass, inertia,
     Young's modulus, damping, PID gains; ``randomize=True`` applies a preset), the grasp
     noise, the goal (uniform within ``goal_x_range_mm`` / ``goal_theta_range_deg``), the
-    set-point latency (only with ``setpoint_latency`` > 0) and the observation noise; a randomised draw whose grasp phase fails is redrawn (up to 10 times).
+    set-point latency (only with ``setpoint_latency`` > 0) and the observation noise; a
+    randomised draw whose grasp phase fails is redrawn (up to 10 times).
     ``reset`` raises :class:`~softhand_env.physics.PhysicsError` if the grasp phase itself ends
     in one of the failures of Episode End (e.g. ``grasp_setpoint_deg=(12, 12)`` over-compresses
     the fingertips; every draw failing with randomisation): that configuration cannot start
@@ -198,7 +200,8 @@ class SoftHandEnv(gym.Env):
     ``control_dt`` (0, 1] s and at most 100,000 substeps; ``grasp_duration`` [0, 10] s and at
     most 1,000,000 substeps; ``max_delta_deg`` [0.001, 30]; ``reset_noise_deg`` [0, 10];
     ``overcompression_ratio`` [0.001, 1]; ``ch_limit`` [1e-12, 1] m; ``base_tolerance``
-    [0, inf] (inf: off); ``rand_*`` [0, 1); ``obs_noise`` [0, 10); ``setpoint_latency`` [0, 10]; reward weights [0, 1e6];
+    [0, inf] (inf: off); ``rand_*`` [0, 1); ``obs_noise`` [0, 10); ``setpoint_latency``
+    [0, 10]; reward weights [0, 1e6];
     ``goal_x_range_mm``, ``x_tolerance_mm`` (0, 100]; ``x_scale_mm`` (0, 1000];
     ``goal_theta_range_deg``, ``theta_tolerance_deg`` (0, 90]; ``theta_scale_deg`` (0, 360];
     ``render_width``, ``render_height`` [16, 4096]. Every reward is finite within them.
@@ -229,7 +232,7 @@ class SoftHandEnv(gym.Env):
     | `rand_damping` | float | `None` | c_n and c_t, relative half-width (preset 0.2) |
     | `rand_gains` | float | `None` | Kp, Kd, Ki, relative half-width (preset 0.1) |
     | `obs_noise` | float | `None` | observation noise std, scaled units (preset 0.01) |
-    | `setpoint_latency` | int | `0` | largest set-point latency (control steps); each episode draws 0..this |
+    | `setpoint_latency` | int | `0` | largest set-point latency (steps), drawn 0..this |
     | `goal_x_range_mm` | float | `None` | x* ~ U(-r, r) (mm) |
     | `goal_theta_range_deg` | float | `None` | theta* ~ U(-r, r) (deg) |
     | `x_tolerance_mm` | float | `None` | success tolerance on x (mm) |

@@ -10,8 +10,9 @@ substeps) with random actions for
 
 at N = 8, 64, 512 by default. ``--episode-steps K`` instead measures the single environment
 with episodes of K steps (resets included) with and without the post-grasp cache
-(:func:`softhand_env.envs.start.grasp_cache`), the cost of a reset. Best of ``--repeats`` timed runs (the figures are noisy on a
-shared machine). A kernel-only line gives the ceiling: RK4 substeps per second of
+(:func:`softhand_env.envs.start.grasp_cache`), the cost of a reset. Best of ``--repeats``
+timed runs (the figures are noisy on a shared machine). A kernel-only line gives the
+ceiling: RK4 substeps per second of
 :func:`softhand_env.physics.kernel.advance`. Timing is reported, never asserted.
 """
 
