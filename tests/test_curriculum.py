@@ -88,3 +88,14 @@ def test_callback_widens_the_range_linearly():
     assert scales[-1][1] == 1.0
     with pytest.raises(ValueError, match="start must be"):
         GoalCurriculumCallback(start=0.0)
+
+
+def test_goal_scale_on_the_native_vec_env_of_a_random_id():
+    venv = VecNormalize(make_sb3_vec_env("SoftHandPoseRandom-v0", N, None,
+                                         {"max_episode_steps": 10}, "native"))
+    venv.seed(1)
+    set_goal_scale(venv, 0.2)
+    goals = _goals(venv.venv)
+    ranges = np.array([t.goal_range for t in venv.get_attr("task")[0].targets])
+    assert len(goals) > 3 * N and np.all(np.abs(goals) <= 0.2 * ranges)
+    assert np.all(np.abs(goals).max(axis=0) > 0.05 * ranges)  # goals do vary

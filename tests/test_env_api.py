@@ -18,7 +18,7 @@ import pytest
 import yaml
 
 import softhand_env
-from softhand_env.envs import ENV_IDS, SoftHandEnv
+from softhand_env.envs import ENV_IDS, RANDOM_KWARGS, SoftHandEnv
 from softhand_env.envs.tasks import GOAL_TERMS
 from softhand_env.physics.failure import REASONS
 from softhand_env.physics.model import DN_1, DN_2, TH_OBJ, X_OBJ, initial_state
@@ -44,7 +44,8 @@ def test_ids_registered_with_time_limit_and_vector_entry_point():
         spec = gym.spec(env_id)
         cfg = yaml.safe_load((ROOT / "configs" / "tasks" / f"{task}.yaml").read_text())
         assert spec.max_episode_steps == cfg["max_episode_steps"] > 0
-        assert spec.kwargs == {"task": task}
+        extra = RANDOM_KWARGS if env_id.endswith("Random-v0") else {}
+        assert spec.kwargs == {"task": task, **extra}
         assert spec.vector_entry_point is not None
         env = gym.make(env_id)
         assert isinstance(env.unwrapped, SoftHandEnv)

@@ -11,3 +11,9 @@ def test_bench_env_runs_and_reports_every_mode(capsys):
     for label in ("kernel", "single (gym.make)", "sync", "async", "vector_entry_point"):
         assert label in out
     assert "skipped" in out  # async above --async-max
+
+
+def test_bench_env_reset_cost_mode_reports_cache_off_and_on(capsys):
+    bench_env.main(["--episode-steps", "5", "--env-steps", "20", "--repeats", "1"])
+    out = capsys.readouterr().out
+    assert "grasp cache off" in out and "grasp cache on" in out

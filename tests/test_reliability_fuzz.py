@@ -38,7 +38,7 @@ from softhand_env.envs.tasks import TASK_KWARGS
 from softhand_env.physics import PhysicsError
 from softhand_env.physics.params import _RANGES, YAML_KEYS, HandParams, hand_params_from_dict
 
-TASK_IDS = {task: env_id for env_id, task in ENV_IDS.items()}
+TASK_IDS = {task: env_id for env_id, task in reversed(ENV_IDS.items())}  # nominal ids
 TASKS = tuple(TASK_IDS)
 
 

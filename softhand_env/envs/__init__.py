@@ -9,6 +9,7 @@ id                          task         goal
 ``SoftHandReorient-v0``     ``reorient`` object angle theta_obj to a sampled target
 ``SoftHandTranslate-v0``    ``translate`` object position x_obj to a sampled target
 ``SoftHandPose-v0``         ``pose``     x_obj and theta_obj together
+``SoftHand*Random-v0``      as above     Reorient, Translate, Pose with :data:`RANDOM_KWARGS`
 ==========================  ===========  ==================================================
 
 all with the entry point :class:`SoftHandEnv` (the task is a keyword), ``max_episode_steps``
@@ -36,6 +37,30 @@ ENV_IDS: dict[str, str] = {
     "SoftHandReorient-v0": "reorient",
     "SoftHandTranslate-v0": "translate",
     "SoftHandPose-v0": "pose",
+    "SoftHandReorientRandom-v0": "reorient",
+    "SoftHandTranslateRandom-v0": "translate",
+    "SoftHandPoseRandom-v0": "pose",
+}
+
+#: The ids of the randomisation ladder's top rung (:data:`RANDOM_KWARGS`).
+RANDOM_IDS = tuple(i for i in ENV_IDS if i.endswith("Random-v0"))
+
+#: Keywords of the ``Random`` ids (the randomisation ladder's top rung), on top of the task:
+#: relative half-widths of the hand parameters (friction included), observation noise, a
+#: set-point latency of 0 or 1 control steps per episode, and the RK4 substep halved (0.05 ms), at which every corner of
+#: these ranges is within RK4's stability region (at 0.1 ms the lightest, softest, least damped
+#: corner is not). Post-grasp d_n stays below a/2 (tests/test_env_random.py).
+RANDOM_KWARGS: dict[str, Any] = {
+    "rand_width": 0.1,
+    "rand_mass": 0.5,
+    "rand_inertia": 0.5,
+    "rand_stiffness": 0.3,
+    "rand_damping": 0.3,
+    "rand_gains": 0.3,
+    "rand_friction": 0.2,  # mu = 1.0 +- 20 %: above the 0.66 the shipped agents need
+    "obs_noise": 0.01,
+    "setpoint_latency": 1,
+    "hand_overrides": {"dt": 5e-5},
 }
 
 ENTRY_POINT = "softhand_env.envs.dict_obs:make_env"
@@ -72,7 +97,7 @@ def register_envs() -> None:
             vector_entry_point=VECTOR_ENTRY_POINT,
             max_episode_steps=int(config["max_episode_steps"]),
             reward_threshold=reward_threshold(config),
-            kwargs={"task": task},
+            kwargs={"task": task, **(RANDOM_KWARGS if env_id in RANDOM_IDS else {})},
         )
 
 
@@ -88,4 +113,12 @@ def __getattr__(name: str) -> Any:
     raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
 
-__all__ = ["ENV_IDS", "SoftHandEnv", "SoftHandVectorEnv", "register_envs", "reward_threshold"]
+__all__ = [
+    "ENV_IDS",
+    "RANDOM_IDS",
+    "RANDOM_KWARGS",
+    "SoftHandEnv",
+    "SoftHandVectorEnv",
+    "register_envs",
+    "reward_threshold",
+]

@@ -33,6 +33,8 @@ MAX_GRASP_DURATION = 10.0
 MAX_SUBSTEPS = 100_000
 MAX_GRASP_SUBSTEPS = 1_000_000
 MAX_RENDER_SIZE = 4096
+#: Largest ``setpoint_latency`` (control steps).
+MAX_SETPOINT_LATENCY = 10
 
 #: Allowed ``render_mode`` values.
 RENDER_MODES = ("human", "rgb_array")
@@ -60,6 +62,9 @@ class EnvConfig:
     reset_noise : float
         Half-width (rad) of uniform noise on the grasp set-points.
     randomization : Randomization
+    setpoint_latency : int
+        Largest set-point latency in control steps (0: none); each episode draws its latency
+        uniformly from 0..setpoint_latency.
     dn_limit : float
         Over-compression limit on d_n (m).
     ch_limit : float
@@ -85,6 +90,7 @@ class EnvConfig:
     n_grasp: int
     reset_noise: float
     randomization: Randomization
+    setpoint_latency: int
     dn_limit: float
     ch_limit: float
     base_limit: float
@@ -184,6 +190,15 @@ def build_config(options: EnvOptions) -> EnvConfig:
             or not 16 <= value <= MAX_RENDER_SIZE
         ):
             raise ValueError(f"{name} must be an int in [16, {MAX_RENDER_SIZE}] (got {value!r})")
+    latency = o.setpoint_latency
+    if (
+        isinstance(latency, (bool, np.bool_))
+        or not isinstance(latency, (int, np.integer))
+        or not 0 <= latency <= MAX_SETPOINT_LATENCY
+    ):
+        raise ValueError(
+            f"setpoint_latency must be an int in [0, {MAX_SETPOINT_LATENCY}] (got {latency!r})"
+        )
     task_obj = make_task(o.task, **task_kw)
     randomization = Randomization.resolve(_flag("randomize", o.randomize), **rand_kw)
     randomization.check_ranges(params)
@@ -206,6 +221,7 @@ def build_config(options: EnvOptions) -> EnvConfig:
         n_grasp=n_grasp,
         reset_noise=math.radians(_number("reset_noise_deg", o.reset_noise_deg, 0.0, 10.0)),
         randomization=randomization,
+        setpoint_latency=int(latency),
         dn_limit=_number("overcompression_ratio", o.overcompression_ratio, 1e-3, 1.0) * params.a,
         ch_limit=_number("ch_limit", o.ch_limit, 1e-12, 1.0),
         base_limit=1.0 + _tolerance("base_tolerance", o.base_tolerance),

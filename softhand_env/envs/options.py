@@ -76,6 +76,8 @@ class EnvOptions:
         friction coefficient mu, relative half-width (preset 0.2)
     obs_noise : float | None
         observation noise std, scaled units (preset 0.01)
+    setpoint_latency : int
+        largest set-point latency (steps), drawn 0..this
     goal_x_range_mm : float | None
         x* ~ U(-r, r) (mm)
     goal_theta_range_deg : float | None
@@ -132,6 +134,7 @@ class EnvOptions:
     rand_gains: float | None = None
     rand_friction: float | None = None
     obs_noise: float | None = None
+    setpoint_latency: int = 0
     goal_x_range_mm: float | None = None
     goal_theta_range_deg: float | None = None
     x_tolerance_mm: float | None = None

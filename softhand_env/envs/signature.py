@@ -15,7 +15,8 @@ Signature fields (JSON-friendly; :data:`SIGNATURE_FIELDS`):
 =====================  ====================================================================
 field                  meaning
 =====================  ====================================================================
-``env_id``             registered id (``SoftHandReorient-v0`` ...)
+``env_id``             registered id (``SoftHandReorient-v0`` ...; the ``Random`` ids of the
+                       randomisation ladder are distinct ids)
 ``version``            ``softhand_env.__version__``
 ``task``               ``none`` / ``reorient`` / ``translate`` / ``pose``
 ``obs_mode``           ``proprio`` or ``proprio_tactile``
@@ -99,6 +100,22 @@ def _config_and_id(env: Any) -> tuple[Any, str | None]:
     return cfg, (spec.id if spec is not None else None)
 
 
+def _registered_id(env: Any, task: str) -> str:
+    """Id of an environment constructed without ``gym.make``: the ``Random`` id of its task if
+    it has the keywords of :data:`softhand_env.envs.RANDOM_KWARGS`, else the task's id."""
+    from softhand_env.envs import ENV_IDS, RANDOM_KWARGS
+
+    base = getattr(env, "unwrapped", env)
+    options = getattr(base, "options", None)
+    if options is None and hasattr(env, "get_attr"):
+        options = env.get_attr("options")[0]
+    randomised = options is not None and all(
+        getattr(options, k) == v for k, v in RANDOM_KWARGS.items()
+    )
+    ids = [i for i, t in ENV_IDS.items() if t == task and i.endswith("Random-v0") == randomised]
+    return ids[0] if ids else next(i for i, t in ENV_IDS.items() if t == task)
+
+
 def env_signature(env: Any) -> dict[str, Any]:
     """What a model trained on ``env`` depends on (see the module doc), as a JSON-able dict.
 
@@ -109,11 +126,9 @@ def env_signature(env: Any) -> dict[str, Any]:
         a Gymnasium vector env or an SB3 VecEnv of softhand environments.
     """
     import softhand_env
-    from softhand_env.envs import ENV_IDS
-
     cfg, env_id = _config_and_id(env)
-    if env_id is None:  # constructed directly: the id registered for the task
-        env_id = next(i for i, t in ENV_IDS.items() if t == cfg.task.name)
+    if env_id is None:  # constructed directly: the id registered for the task and keywords
+        env_id = _registered_id(env, cfg.task.name)
     actions = cfg.actions
     return {
         "env_id": env_id,

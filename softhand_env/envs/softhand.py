@@ -51,6 +51,21 @@ class SoftHandEnv(gym.Env):
     | `SoftHandReorient-v0`   | `reorient`  | theta_obj to theta*         | 250 (5 s)         |
     | `SoftHandTranslate-v0`  | `translate` | x_obj to x*                 | 250 (5 s)         |
     | `SoftHandPose-v0`       | `pose`      | x_obj to x* and theta* both | 400 (8 s)         |
+    | `SoftHandReorientRandom-v0` | `reorient` | as Reorient, randomised | 250 (5 s)         |
+    | `SoftHandTranslateRandom-v0` | `translate` | as Translate, randomised | 250 (5 s)        |
+    | `SoftHandPoseRandom-v0` | `pose`      | as Pose, randomised         | 400 (8 s)         |
+
+    The ``Random`` ids are the top rung of the randomisation ladder (keywords in
+    :data:`softhand_env.envs.RANDOM_KWARGS`, each overridable): object width +-10 %, mass and
+    inertia +-50 %, Young's modulus +-30 %, damping +-30 %, PID gains +-30 %, observation
+    noise 0.01, a set-point latency of 0 or 1 control steps per episode, and the RK4 substep
+    halved to 0.05 ms (``hand_overrides={"dt": 5e-5}``: at 0.1 ms the lightest, softest,
+    least damped corner of these ranges puts the finger mode beyond RK4's stability limit;
+    at 0.05 ms every corner is stable, the gains up to +-40 %). Passing your own
+    ``hand_overrides`` replaces that dict: keep ``"dt": 5e-5`` in it. Post-grasp d_n over
+    these ranges: 4.9-9.7 mm (grasp phase at every corner of the box; tested), below the
+    10 mm limit a/2; the wider objects (about a third of the draws) start beyond the 8 mm up
+    to which the fingertip model was validated by the compression tests.
 
     ## Action Space
 
@@ -65,8 +80,13 @@ class SoftHandEnv(gym.Env):
     With ``action_mode="absolute", normalize_action=False`` the action space is
     ``Box(low, high, (2,), float32)`` with the joint range in rad and the action *is* the
     set-point pair in radians (used by scripted replay; the float64 values passed are used
-    unrounded). Out-of-range actions are clipped (to [-1, 1], then set-points to the joint
-    range); NaN or inf raise ``ValueError``, as does a wrong shape; anything but real numbers
+    unrounded). With ``setpoint_latency`` = K > 0 each episode draws a latency L in 0..K
+    (uniform): the set-points commanded by an action take effect L control steps later, the
+    earlier ones staying applied meanwhile (delta actions and the control cost refer to the
+    commanded set-points; the physics, the observation's set-point entries and
+    ``info["setpoint"]`` show the applied ones). Out-of-range actions are clipped (to
+    [-1, 1], then set-points to the joint range); NaN or inf raise ``ValueError``, as does a
+    wrong shape; anything but real numbers
     (bool, int, float: complex, strings, dates, objects, masked arrays) raises ``TypeError``.
 
     ## Observation Space
@@ -116,17 +136,26 @@ class SoftHandEnv(gym.Env):
     randomised parameters (``rand_*``, relative half-widths of object width, mass, inertia,
     Young's modulus, damping, PID gains; ``randomize=True`` applies a preset), the grasp
     noise, the goal (uniform within ``goal_x_range_mm`` / ``goal_theta_range_deg``), the
-    friction coefficient (``rand_friction``) and the observation noise; a randomised draw
-    whose grasp phase fails is redrawn (up to 10 times). Randomisation ranges whose extremes
-    would make RK4 unstable at the 0.1 ms substep (e.g. ``rand_gains`` above 0.137 with the
-    other presets) raise ``ValueError`` at construction, naming the keyword and the limit; a
-    hand that is itself beyond the limit (``hand_overrides``) gets a ``RuntimeWarning``.
+    friction coefficient (``rand_friction``), the set-point latency (only with
+    ``setpoint_latency`` > 0) and the observation noise; a randomised draw whose grasp phase
+    fails is redrawn (up to 10 times). Randomisation ranges whose extremes would make RK4
+    unstable at the hand's substep (e.g. ``rand_gains`` above 0.137 with the other presets at
+    0.1 ms) raise ``ValueError`` at construction, naming the keyword and the limit; a hand that
+    is itself beyond the limit (``hand_overrides``) gets a ``RuntimeWarning``.
     ``reset`` raises :class:`~softhand_env.physics.PhysicsError` if the grasp phase itself ends
     in one of the failures of Episode End (e.g. ``grasp_setpoint_deg=(12, 12)`` over-compresses
     the fingertips; every draw failing with randomisation): that configuration cannot start
     an episode. ``reset(options={"goal": g})`` sets the goal (SI units) instead; it must lie
     within the task's goal range (``ValueError`` otherwise). ``options`` must be None or a
     dict (``TypeError``) whose only key is ``"goal"`` (``ValueError`` listing the allowed keys).
+
+    Goal curriculum: ``env.unwrapped.task.set_goal_scale(s)``, s in (0, 1], draws the goals of
+    the following resets from s times the goal ranges (the same uniform draws, scaled; s = 1
+    is the default); the native vector env's N environments share the task, so one call
+    scales them all, autoresets included. Stable-Baselines3: ``agents.curriculum``
+    (``set_goal_scale(venv, s)`` on a ``DummyVecEnv`` or the native ``NativeVecEnv``,
+    ``GoalCurriculumCallback``). It is not a reset option, which would reach explicit resets
+    only, not the autoresets of vector envs.
 
     ## Episode End
 
@@ -199,7 +228,8 @@ class SoftHandEnv(gym.Env):
     ``control_dt`` (0, 1] s and at most 100,000 substeps; ``grasp_duration`` [0, 10] s and at
     most 1,000,000 substeps; ``max_delta_deg`` [0.001, 30]; ``reset_noise_deg`` [0, 10];
     ``overcompression_ratio`` [0.001, 1]; ``ch_limit`` [1e-12, 1] m; ``base_tolerance``
-    [0, inf] (inf: off); ``rand_*`` [0, 1); ``obs_noise`` [0, 10); reward weights [0, 1e6];
+    [0, inf] (inf: off); ``rand_*`` [0, 1); ``obs_noise`` [0, 10); ``setpoint_latency``
+    [0, 10]; reward weights [0, 1e6];
     ``goal_x_range_mm``, ``x_tolerance_mm`` (0, 100]; ``x_scale_mm`` (0, 1000];
     ``goal_theta_range_deg``, ``theta_tolerance_deg`` (0, 90]; ``theta_scale_deg`` (0, 360];
     ``render_width``, ``render_height`` [16, 4096]. Every reward is finite within them.
@@ -232,6 +262,7 @@ class SoftHandEnv(gym.Env):
     | `rand_gains` | float | `None` | Kp, Kd, Ki, relative half-width (preset 0.1) |
     | `rand_friction` | float | `None` | friction coefficient mu, relative half-width (preset 0.2) |
     | `obs_noise` | float | `None` | observation noise std, scaled units (preset 0.01) |
+    | `setpoint_latency` | int | `0` | largest set-point latency (steps), drawn 0..this |
     | `goal_x_range_mm` | float | `None` | x* ~ U(-r, r) (mm) |
     | `goal_theta_range_deg` | float | `None` | theta* ~ U(-r, r) (deg) |
     | `x_tolerance_mm` | float | `None` | success tolerance on x (mm) |
@@ -266,6 +297,8 @@ class SoftHandEnv(gym.Env):
       tension, ...) even when the object happens to be within tolerance of the goal; before,
       only ``grasped`` was required, so an episode ending in over-compression could count.
     - v0, validity update: ``info["contact_validated"]`` per fingertip.
+    - v0, ladder update: ``setpoint_latency`` keyword and the ``Random`` ids (randomisation
+      ladder).
     """
 
     metadata = {"render_modes": list(RENDER_MODES), "render_fps": 50}
@@ -298,6 +331,7 @@ class SoftHandEnv(gym.Env):
         rand_gains: float | None = None,
         rand_friction: float | None = None,
         obs_noise: float | None = None,
+        setpoint_latency: int = 0,
         goal_x_range_mm: float | None = None,
         goal_theta_range_deg: float | None = None,
         x_tolerance_mm: float | None = None,
@@ -341,6 +375,7 @@ class SoftHandEnv(gym.Env):
             rand_gains=rand_gains,
             rand_friction=rand_friction,
             obs_noise=obs_noise,
+            setpoint_latency=setpoint_latency,
             goal_x_range_mm=goal_x_range_mm,
             goal_theta_range_deg=goal_theta_range_deg,
             x_tolerance_mm=x_tolerance_mm,

@@ -7,13 +7,19 @@
 paper's parallel point-contact state (``n_substeps = 0`` returns that state itself, as the
 paper's replay needs) and classifies the result like every control step
 (:func:`softhand_env.physics.failure.classify`, through :class:`~softhand_env.physics.HandPhysics`).
-Results are cached per (parameters, set-points, substeps, limits), so resets without
-randomisation cost a copy.
+Results are cached per (parameters, set-points, substeps, limits): every field of
+:class:`~softhand_env.physics.params.HandParams` and every argument of :func:`grasp_state` is
+part of the key, so a cached state is the one the grasp phase would compute, bit for bit.
+Resets without randomisation (nominal parameters, no grasp noise) therefore simulate the grasp
+phase once per process and then cost a copy; randomised resets simulate it every time.
+:func:`grasp_cache` switches the cache off (e.g. to check that it changes nothing).
 """
 
 from __future__ import annotations
 
 from collections import OrderedDict
+from collections.abc import Iterator
+from contextlib import contextmanager
 from dataclasses import dataclass
 from typing import Any
 
@@ -25,8 +31,21 @@ from softhand_env.physics.params import HandParams
 
 _CACHE: OrderedDict[tuple[Any, ...], tuple[np.ndarray, float, float]] = OrderedDict()
 _CACHE_SIZE = 64
+_CACHE_ON = [True]
 #: Draws of randomised parameters / grasp noise tried before a failing grasp phase raises.
 MAX_DRAWS = 10
+
+
+@contextmanager
+def grasp_cache(enabled: bool) -> Iterator[None]:
+    """Within the ``with`` block, :func:`start_episode` uses the grasp cache (``True``, the
+    default outside) or simulates every grasp phase (``False``); the cache's content is kept."""
+    previous = _CACHE_ON[0]
+    _CACHE_ON[0] = bool(enabled)
+    try:
+        yield
+    finally:
+        _CACHE_ON[0] = previous
 
 
 def grasp_state(
@@ -112,12 +131,15 @@ class EpisodeStart:
         Goal (SI units).
     state : ndarray, shape (20,)
         Start state.
+    latency : int
+        Set-point latency of the episode (control steps; 0 unless ``setpoint_latency``).
     """
 
     params: HandParams
     setpoint: np.ndarray
     goal: np.ndarray
     state: np.ndarray
+    latency: int = 0
 
 
 def start_episode(
@@ -128,7 +150,8 @@ def start_episode(
     """Draw and simulate the start of an episode (shared by the single and the vector env).
 
     ``rng`` draws, in this order: randomised parameters of the dynamics, grasp set-point noise,
-    the goal, the randomised friction coefficient (it does not change the grasp phase). A
+    the goal, the randomised friction coefficient (it does not change the grasp phase), then
+    (only with ``setpoint_latency`` > 0) the episode's set-point latency. A
     randomised draw whose grasp phase fails (lost grasp, over-compression) is redrawn, up to
     :data:`MAX_DRAWS` times; then (and at once without randomisation) ``PhysicsError`` is raised.
 
@@ -143,6 +166,7 @@ def start_episode(
         range (``goal_x_range_mm`` / ``goal_theta_range_deg``, in SI units).
     """
     fixed = not (cfg.randomization.params_active or cfg.reset_noise > 0)
+    cached = fixed and _CACHE_ON[0]
     for attempt in range(1 if fixed else MAX_DRAWS):
         params = cfg.randomization.sample_params(cfg.params, rng)
         u0 = cfg.grasp_setpoint.copy()
@@ -150,7 +174,7 @@ def start_episode(
             u0 += rng.uniform(-cfg.reset_noise, cfg.reset_noise, size=2)
         try:
             y, _, _ = grasp_state(
-                params, u0, cfg.n_grasp, cfg.ch_limit, cfg.dn_limit, use_cache=fixed,
+                params, u0, cfg.n_grasp, cfg.ch_limit, cfg.dn_limit, use_cache=cached,
                 base_limit=cfg.base_limit,
             )
             break
@@ -174,4 +198,7 @@ def start_episode(
                     f"[-{target.goal_range:g}, {target.goal_range:g}] (SI units)"
                 )
     params = cfg.randomization.sample_friction(params, rng)
-    return EpisodeStart(params, u0, goal, y)
+    latency = 0
+    if cfg.setpoint_latency > 0:
+        latency = int(rng.integers(0, cfg.setpoint_latency + 1))
+    return EpisodeStart(params, u0, goal, y, latency)

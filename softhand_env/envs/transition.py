@@ -88,6 +88,14 @@ class EpisodeBatch:
     grasped, success : ndarray of bool, shape (N,)
     reason : ndarray of object, shape (N,)
         Termination reason of the last step (a failure name or ``"success"``), else None.
+    latency : ndarray of int64, shape (N,)
+        Set-point latency of each episode in control steps (``setpoint_latency``; 0 without).
+
+    Set-point latency (``cfg.setpoint_latency`` = K > 0): the set-points commanded at step t
+    are applied from step t + L on (L the episode's latency), the ones commanded before stay
+    applied meanwhile; an episode starts with the grasp set-points as every earlier command.
+    Delta actions and the control cost refer to the commanded set-points; the physics, the
+    observation and ``info["setpoint"]`` see the applied ones.
     """
 
     def __init__(self, cfg: EnvConfig, num_envs: int | None):
@@ -117,6 +125,9 @@ class EpisodeBatch:
         self.grasped = np.zeros(n, dtype=bool)
         self.success = np.zeros(n, dtype=bool)
         self.reason = np.full(n, None, dtype=object)
+        self.latency = np.zeros(n, dtype=np.int64)
+        # set-points commanded in the last K steps, newest first (only with K > 0)
+        self._sent = np.zeros((n, cfg.setpoint_latency, 2))
         self._goal_cols: tuple[Any, ...] = ()
         self._refresh_goal_columns()
         self._r = self.physics.readouts()
@@ -135,6 +146,8 @@ class EpisodeBatch:
         :func:`~softhand_env.envs.start.start_episode`); call :meth:`finish_reset` next."""
         start = start_episode(self.cfg, _generator((rng,), 0), goal)
         self.physics.reset_hand(i, start.state, start.setpoint, start.params)
+        self.latency[i] = start.latency
+        self._sent[i] = start.setpoint
         self.goal[i] = start.goal
         self.mu[i] = start.params.mu
         self.radius[i] = start.params.a
@@ -227,7 +240,11 @@ class EpisodeBatch:
         terminated : ndarray of bool, shape (N,)
         """
         cfg, n = self.cfg, self.num_envs
-        u, ctrl = cfg.actions.setpoints(actions, self._r.setpoint)  # the last commanded
+        if cfg.setpoint_latency:
+            u, ctrl = cfg.actions.setpoints(actions, self._sent[:, 0])
+            u = self._delay(u)
+        else:
+            u, ctrl = cfg.actions.setpoints(actions, self._r.setpoint)  # the last commanded
         status = self.physics.step(u, cfg.n_substeps, strict=False, skip=skip).hands
         failed, grasped = status.failed, status.grasped
         contact = self._check_contact(status.impulse, failed, skip)
@@ -279,6 +296,14 @@ class EpisodeBatch:
         if skip is not None:
             bad &= ~skip
         return bad
+
+    def _delay(self, u: np.ndarray) -> np.ndarray:
+        """Record the commanded set-points ``u`` (N, 2); return those to apply this step: the
+        ones commanded ``latency`` steps ago (see the class doc)."""
+        sent = np.concatenate((u[:, None], self._sent), axis=1)  # [:, L] = commanded L ago
+        applied = sent[np.arange(self.num_envs), self.latency]
+        self._sent[:] = sent[:, :-1]
+        return applied
 
     # ------------------------------------------------------------------------------- info
     def info_values(self) -> dict[str, np.ndarray]:

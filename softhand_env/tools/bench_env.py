@@ -8,8 +8,11 @@ substeps) with random actions for
   N above ``--async-max``, default 64, is skipped: 512 worker processes are not sensible),
 * the native vector environment (``vectorization_mode="vector_entry_point"``, numba threads),
 
-at N = 8, 64, 512 by default, best of ``--repeats`` timed runs (the figures are noisy on a
-shared machine). A kernel-only line gives the ceiling: RK4 substeps per second of
+at N = 8, 64, 512 by default. ``--episode-steps K`` instead measures the single environment
+with episodes of K steps (resets included) with and without the post-grasp cache
+(:func:`softhand_env.envs.start.grasp_cache`), the cost of a reset. Best of ``--repeats``
+timed runs (the figures are noisy on a shared machine). A kernel-only line gives the
+ceiling: RK4 substeps per second of
 :func:`softhand_env.physics.kernel.advance`. Timing is reported, never asserted.
 """
 
@@ -104,9 +107,25 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("--repeats", type=int, default=3, help="timed runs; the best is shown")
     parser.add_argument("--async-max", type=int, default=64,
                         help="largest N for async mode (one worker process per environment)")
+    parser.add_argument("--episode-steps", type=int, default=None,
+                        help="only the single env, episodes of this many steps, grasp cache "
+                             "on and off")
     args = parser.parse_args(argv)
 
     import numba
+
+    if args.episode_steps is not None:
+        from softhand_env.envs.start import grasp_cache
+
+        print(f"softhand_env {softhand_env.__version__}: {args.id}, random actions, episodes "
+              f"of {args.episode_steps} steps (resets included), best of {args.repeats}")
+        for enabled in (False, True):
+            with grasp_cache(enabled):
+                rate = bench_single(args.id, args.env_steps, args.repeats,
+                                    max_episode_steps=args.episode_steps)
+            label = f"grasp cache {'on' if enabled else 'off'}"
+            print(f"{label:<24}{rate:>14,.0f} env steps/s{1e6 / rate:>10.1f} us/step", flush=True)
+        return
 
     print(f"softhand_env {softhand_env.__version__}: {args.id}, random actions, "
           f"best of {args.repeats}; numba threads: {numba.get_num_threads()}")

@@ -1,0 +1,22 @@
+"""The native-vector-env PPO entries (configs/agents/ppo_native.yml)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import softhand_env
+from agents.hyperparams import algo_kwargs, load_hyperparams
+
+CONF = Path(softhand_env.__file__).parent / "configs" / "agents" / "ppo_native.yml"
+
+
+def test_reorient_native_entry_loads_and_keeps_the_ppo_yml_task_settings():
+    native = load_hyperparams("ppo", "SoftHandReorient-v0", str(CONF))
+    dummy = load_hyperparams("ppo", "SoftHandReorient-v0")
+    assert native["vec_env"] == "native" and "vec_env" not in dummy
+    assert native["env_kwargs"] == dummy["env_kwargs"]
+    assert native["policy_kwargs"] == dummy["policy_kwargs"]
+    assert native["normalize"] == dummy["normalize"]
+    assert native["n_envs"] * native["n_steps"] == 8192
+    kwargs = algo_kwargs("ppo", native)  # every algorithm key in range
+    assert kwargs["batch_size"] == 1024 and kwargs["n_epochs"] == 5
