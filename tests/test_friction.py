@@ -206,3 +206,25 @@ def test_handling_process_friction_and_release_tension():
     release = imp[op == 7]
     assert friction.tension(release).any(axis=1).sum() >= 5
     assert not friction.tension(imp[op <= 6]).any()
+
+
+def test_compiled_contact_check_equals_the_array_functions():
+    """friction.check_contact (the env's per-step check) gives exactly friction_ratio, tension
+    and the slip rule of the array functions, non-finite impulses read as 0."""
+    rng = np.random.default_rng(3)
+    imp = rng.normal(size=(64, 4))
+    imp[::7, 0] = 0.0
+    imp[3, 2] = np.nan
+    mu = rng.uniform(0.2, 2.0, size=64)
+    failed = rng.random(64) < 0.2
+    skip = rng.random(64) < 0.1
+    out_imp, ratio = np.empty((64, 4)), np.empty((64, 2))
+    tens, bad = np.empty((64, 2), dtype=bool), np.empty(64, dtype=bool)
+    friction.check_contact(imp, mu, failed, skip, out_imp, ratio, tens, bad)
+    clean = np.where(np.isfinite(imp), imp, 0.0)
+    np.testing.assert_array_equal(out_imp, clean)
+    np.testing.assert_array_equal(ratio, friction.friction_ratio(clean))
+    np.testing.assert_array_equal(tens, friction.tension(clean))
+    expect = friction.slipping(clean, mu[:, None]).any(axis=1) & ~failed & ~skip
+    np.testing.assert_array_equal(bad, expect)
+    assert bad.any() and not bad.all()

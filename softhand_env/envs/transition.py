@@ -119,6 +119,8 @@ class EpisodeBatch:
         self.flags = np.zeros(n, dtype=np.int64)
         self.mu = np.full(n, cfg.params.mu)
         self.radius = np.full(n, cfg.params.a)
+        self.validated = np.ones((n, 2), dtype=bool)
+        self._no_skip = np.zeros(n, dtype=bool)
         self.contact_impulse = np.zeros((n, 4))
         self.friction_ratio = np.zeros((n, 2))
         self.tension = np.zeros((n, 2), dtype=bool)
@@ -167,6 +169,7 @@ class EpisodeBatch:
         then the goal."""
         p = self.physics
         r = self._r = p.readouts()
+        self._refresh_validated()
         grasped = (r.deformation[:, 0] > 0.0) & (r.deformation[:, 1] > 0.0)
         _, success = self._evaluate(r.object_pose, np.zeros(self.num_envs),
                                     np.zeros(self.num_envs, dtype=bool), grasped)
@@ -251,6 +254,7 @@ class EpisodeBatch:
         if cfg.terminate_on_slip:
             failed = failed | contact
         r = self._r = self.physics.readouts()
+        self._refresh_validated()
         terms, success = self._evaluate(r.object_pose, ctrl, failed, grasped)
         if n == 1:
             self.terms[:, 0] = terms
@@ -287,14 +291,11 @@ class EpisodeBatch:
         bool (N,): environments whose contact pulled or needed more friction than their mu,
         among those not failed otherwise (and not skipped). A diverged step (rolled back) may
         carry non-finite impulses: they read 0 (its ratio inf), so info holds no NaN."""
-        if not np.isfinite(impulse).all():
-            impulse = np.where(np.isfinite(impulse), impulse, 0.0)
-        self.contact_impulse[:] = impulse
-        self.friction_ratio[:] = friction.friction_ratio(impulse)
-        self.tension[:] = friction.tension(impulse)
-        bad = (self.friction_ratio > self.mu[:, None]).any(axis=1) & ~failed
-        if skip is not None:
-            bad &= ~skip
+        bad = np.empty(self.num_envs, dtype=bool)
+        friction.check_contact(
+            np.asarray(impulse, dtype=np.float64).reshape(self.num_envs, 4), self.mu, failed,
+            self._no_skip if skip is None else skip, self.contact_impulse, self.friction_ratio,
+            self.tension, bad)
         return bad
 
     def _delay(self, u: np.ndarray) -> np.ndarray:
@@ -339,7 +340,7 @@ class EpisodeBatch:
             "friction_ratio": self.friction_ratio[i].copy(),
             "contact_impulse": self.contact_impulse[i].copy(),
             "tension": self.tension[i].copy(),
-            "contact_validated": self._validated(slice(i, i + 1))[0],
+            "contact_validated": self.validated[i].copy(),
             "termination_reason": self.reason[i],
         }
         if self.task.goal_dim:
@@ -348,15 +349,12 @@ class EpisodeBatch:
             info[name] = float(self.terms[k, i])
         return info
 
-    def _validated(self, rows: slice) -> np.ndarray:
-        """bool (n, 2) for the environments of ``rows``: each fingertip inside the contact
-        model's validated box (d_n <= 8 mm of a = 20 mm, |theta_p| <= 30 deg; see
-        :mod:`softhand_env.physics.validity`)."""
+    def _refresh_validated(self) -> None:
+        """Each fingertip inside the contact model's validated box (d_n <= 8 mm of a = 20 mm,
+        |theta_p| <= 30 deg; :mod:`softhand_env.physics.validity`), from the read-outs."""
         r = self._r
-        th_obj = r.object_pose[rows, 2]
-        fa = r.finger_angles[rows]
-        theta_p = np.stack([fa[:, 0] - th_obj, fa[:, 1] + th_obj], axis=-1)
-        return validity.validated(r.deformation[rows, :2], theta_p, self.radius[rows, None])
+        validity.validated_rows(r.deformation, r.finger_angles, r.object_pose, self.radius,
+                                self.validated)
 
     def _info_arrays(self) -> dict[str, np.ndarray]:
         """The arrays behind :meth:`info_values` (not copied: callers copy)."""
@@ -372,7 +370,7 @@ class EpisodeBatch:
             "friction_ratio": self.friction_ratio,
             "contact_impulse": self.contact_impulse,
             "tension": self.tension,
-            "contact_validated": self._validated(slice(None)),
+            "contact_validated": self.validated,
             "termination_reason": self.reason,
         }
         if self.task.goal_dim:

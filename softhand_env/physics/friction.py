@@ -31,6 +31,7 @@ transient, so the transient is averaged in with its true weight (its share of th
 from __future__ import annotations
 
 import numpy as np
+from numba import njit
 
 
 def _split(impulse: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -80,4 +81,43 @@ def slipping(impulse: np.ndarray, mu: float | np.ndarray) -> np.ndarray:
     return friction_ratio(impulse) > np.asarray(mu, dtype=np.float64)
 
 
-__all__ = ["friction_ratio", "slipping", "tension"]
+@njit(cache=True)
+def check_contact(impulse, mu, failed, skip, impulse_out, ratio_out, tension_out, bad_out):
+    """Contact check of one control step for N systems, in place (compiled; the arithmetic of
+    :func:`friction_ratio` and :func:`tension`, element by element, so the results are equal).
+
+    Parameters
+    ----------
+    impulse : ndarray, shape (N, 4)
+        (J_n1, J_n2, J_t1, J_t2) of the step (N s); non-finite entries (a diverged, rolled-back
+        step) are read as 0.
+    mu : ndarray, shape (N,)
+        Friction coefficient per system.
+    failed, skip : ndarray of bool, shape (N,)
+        Systems that failed otherwise this step, or were not stepped: never flagged here.
+    impulse_out : ndarray, shape (N, 4), output
+        The impulses as read (non-finite -> 0).
+    ratio_out : ndarray, shape (N, 2), output
+        |J_t| / J_n per finger (inf where J_n <= 0).
+    tension_out : ndarray of bool, shape (N, 2), output
+        J_n < 0 per finger.
+    bad_out : ndarray of bool, shape (N,), output
+        Systems whose contact pulled or needed more friction than their ``mu``.
+    """
+    for s in range(impulse.shape[0]):
+        bad = False
+        for j in range(4):
+            v = impulse[s, j]
+            impulse_out[s, j] = v if np.isfinite(v) else 0.0
+        for f in range(2):
+            jn = impulse_out[s, f]
+            jt = impulse_out[s, 2 + f]
+            r = abs(jt) / jn if jn > 0.0 else np.inf
+            ratio_out[s, f] = r
+            tension_out[s, f] = jn < 0.0
+            if r > mu[s]:
+                bad = True
+        bad_out[s] = bad and not failed[s] and not skip[s]
+
+
+__all__ = ["check_contact", "friction_ratio", "slipping", "tension"]

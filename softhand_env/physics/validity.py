@@ -23,6 +23,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
+from numba import njit
 
 from softhand_env.physics.model import DN_1, TH_1, TH_OBJ
 from softhand_env.physics.params import HandParams
@@ -62,6 +63,19 @@ def validated(d_n: np.ndarray, theta_p: np.ndarray, a: float | np.ndarray) -> np
     array broadcasting against (..., 1)). Returns bool (..., 2)."""
     return (np.asarray(d_n) <= VALIDATED_DN_FRACTION * np.asarray(a)) & (
         np.abs(theta_p) <= VALIDATED_THETA_P)
+
+
+@njit(cache=True)
+def validated_rows(deformation, finger_angles, object_pose, radius, out):
+    """:func:`validated` for N systems from their read-outs, in place (compiled): deformation
+    (N, 4) (m), finger angles (N, 2) (rad), object pose (N, 3) (m, m, rad), fingertip radius
+    (N,) (m); ``out`` bool (N, 2)."""
+    for s in range(deformation.shape[0]):
+        th = object_pose[s, 2]
+        for f in range(2):
+            theta_p = finger_angles[s, f] - th if f == 0 else finger_angles[s, f] + th
+            out[s, f] = (deformation[s, f] <= VALIDATED_DN_FRACTION * radius[s]) and (
+                abs(theta_p) <= VALIDATED_THETA_P)
 
 
 def within_validated_range(y: np.ndarray, params: HandParams) -> np.ndarray:
