@@ -38,6 +38,28 @@ from torch import nn
 ACTOR_KEYS = ("observation", "desired_goal")
 
 
+#: Policy keywords the blind-actor policies set themselves (the per-key extractors).
+_EXTRACTOR_KWARGS = ("features_extractor_class", "features_extractor_kwargs",
+                     "share_features_extractor")
+
+
+def _refuse_extractor_kwargs(policy: str, kwargs: dict[str, Any]) -> None:
+    """ValueError if ``kwargs`` tries to set what the blind-actor policy ``policy`` sets."""
+    for key in _EXTRACTOR_KWARGS:
+        if key in kwargs:
+            raise ValueError(f"{policy} sets {key} itself")
+
+
+def _split_key_parameters(data: dict[str, Any],
+                          keys: tuple[Sequence[str], Sequence[str]]) -> dict[str, Any]:
+    """Constructor parameters saved with a blind-actor policy: the actor/critic keys instead of
+    the extractor keywords (rebuilt from the keys on load)."""
+    for key in _EXTRACTOR_KWARGS:
+        data.pop(key, None)
+    data.update(actor_keys=list(keys[0]), critic_keys=list(keys[1]))
+    return data
+
+
 def resolve_keys(space: spaces.Space, keys: Sequence[str] | None, default: Sequence[str]):
     """The keys of ``space`` to read: ``keys`` (all must exist) or the ``default`` ones present.
 
@@ -126,10 +148,7 @@ class AsymmetricActorCriticPolicy(MultiInputActorCriticPolicy):
         )
         self._n_made = 0
         self._dict_space = observation_space
-        for key in ("features_extractor_class", "features_extractor_kwargs",
-                    "share_features_extractor"):
-            if key in kwargs:
-                raise ValueError(f"{type(self).__name__} sets {key} itself")
+        _refuse_extractor_kwargs(type(self).__name__, kwargs)
         super().__init__(observation_space, action_space, lr_schedule,
                          share_features_extractor=False, **kwargs)
 
@@ -146,12 +165,7 @@ class AsymmetricActorCriticPolicy(MultiInputActorCriticPolicy):
         )
 
     def _get_constructor_parameters(self) -> dict[str, Any]:
-        data = super()._get_constructor_parameters()
-        for key in ("features_extractor_class", "features_extractor_kwargs",
-                    "share_features_extractor"):
-            data.pop(key, None)
-        data.update(actor_keys=list(self._keys[0]), critic_keys=list(self._keys[1]))
-        return data
+        return _split_key_parameters(super()._get_constructor_parameters(), self._keys)
 
 
 class BlindActorSACPolicy(SACMultiInputPolicy):
@@ -170,10 +184,7 @@ class BlindActorSACPolicy(SACMultiInputPolicy):
             resolve_keys(observation_space, critic_keys, tuple(observation_space.spaces)),
         )
         self._dict_space = observation_space
-        for key in ("features_extractor_class", "features_extractor_kwargs",
-                    "share_features_extractor"):
-            if key in kwargs:
-                raise ValueError(f"{type(self).__name__} sets {key} itself")
+        _refuse_extractor_kwargs(type(self).__name__, kwargs)
         super().__init__(observation_space, action_space, lr_schedule,  # type: ignore[arg-type]
                          share_features_extractor=False, **kwargs)
 
@@ -184,12 +195,7 @@ class BlindActorSACPolicy(SACMultiInputPolicy):
         return super().make_critic(KeyConcat(self._dict_space, self._keys[1]))
 
     def _get_constructor_parameters(self) -> dict[str, Any]:
-        data = super()._get_constructor_parameters()
-        for key in ("features_extractor_class", "features_extractor_kwargs",
-                    "share_features_extractor"):
-            data.pop(key, None)
-        data.update(actor_keys=list(self._keys[0]), critic_keys=list(self._keys[1]))
-        return data
+        return _split_key_parameters(super()._get_constructor_parameters(), self._keys)
 
 
 #: Policy aliases registered with SB3 on import.
