@@ -273,8 +273,10 @@ def make_sb3_vec_env(
         ``"native"`` (one :class:`~softhand_env.envs.vector.SoftHandVectorEnv` in
         :class:`NativeVecEnv`, which reports the episode statistics itself).
     env_wrapper : optional
-        Single-env wrappers (``env_wrapper`` of the hyper-parameter YAML); the native vector
-        env takes none (ValueError).
+        Single-env wrappers (``env_wrapper`` of the hyper-parameter YAML). The native vector
+        env takes only wrappers with a ``vector_wrapper`` attribute (an SB3 ``VecEnvWrapper``
+        taking the same keywords, e.g. :class:`agents.time_feature.TimeFeature`), applied in
+        the same order; any other raises ValueError.
     """
     if vec_env not in SB3_VEC_ENVS:
         raise ValueError(f"vec_env must be one of {SB3_VEC_ENVS} (got {vec_env!r})")
@@ -283,16 +285,22 @@ def make_sb3_vec_env(
 
         return make_vec_env(env_id, n_envs, dict(env_kwargs or {}), seed, vec_env,
                             env_wrapper=env_wrapper)
-    if env_wrapper:
-        raise ValueError(
-            "vec_env: native takes no env_wrapper (single-env wrappers cannot wrap the batched "
-            f"env); got {env_wrapper!r}"
-        )
+    from agents.env_factory import wrapper_list
+
+    wrappers = wrapper_list(env_wrapper)
+    for cls, _ in wrappers:
+        if getattr(cls, "vector_wrapper", None) is None:
+            raise ValueError(
+                f"vec_env: native takes only env_wrappers with a vector equivalent (single-env "
+                f"wrappers cannot wrap the batched env); got {cls.__module__}.{cls.__name__}"
+            )
     if isinstance(n_envs, bool) or not isinstance(n_envs, (int, np.integer)) or n_envs < 1:
         raise ValueError(f"n_envs must be an int >= 1 (got {n_envs!r})")
     venv = gym.make_vec(env_id, num_envs=int(n_envs), vectorization_mode="vector_entry_point",
                         **dict(env_kwargs or {}))
-    sb3 = NativeVecEnv(venv)
+    sb3: VecEnv = NativeVecEnv(venv)
     if seed is not None:
         sb3.seed(seed)
+    for cls, kw in wrappers:
+        sb3 = cls.vector_wrapper(sb3, **kw)
     return sb3

@@ -103,8 +103,9 @@ def test_vecnormalize_episode_statistics_and_attributes():
     assert venv.env_is_wrapped(Monitor) == [True] * N  # it reports Monitor's statistics
     with pytest.raises(ValueError, match="all 4 environments"):
         venv.set_attr("dt", 0.01, indices=[0])
-    with pytest.raises(ValueError, match="no env_wrapper"):
-        make_sb3_vec_env(ENV_ID, 2, 0, {}, "native", env_wrapper=["x.Y"])
+    with pytest.raises(ValueError, match="only env_wrappers with a vector equivalent"):
+        make_sb3_vec_env(ENV_ID, 2, 0, {}, "native",
+                         env_wrapper=["gymnasium.wrappers.TimeAwareObservation"])
     with pytest.raises(ValueError, match="vec_env must be one of"):
         make_sb3_vec_env(ENV_ID, 2, 0, {}, "ray")
     norm.close()
