@@ -285,15 +285,7 @@ def make_sb3_vec_env(
 
         return make_vec_env(env_id, n_envs, dict(env_kwargs or {}), seed, vec_env,
                             env_wrapper=env_wrapper)
-    from agents.env_factory import wrapper_list
-
-    wrappers = wrapper_list(env_wrapper)
-    for cls, _ in wrappers:
-        if getattr(cls, "vector_wrapper", None) is None:
-            raise ValueError(
-                f"vec_env: native takes only env_wrappers with a vector equivalent (single-env "
-                f"wrappers cannot wrap the batched env); got {cls.__module__}.{cls.__name__}"
-            )
+    wrappers = vector_wrappers(env_wrapper)
     if isinstance(n_envs, bool) or not isinstance(n_envs, (int, np.integer)) or n_envs < 1:
         raise ValueError(f"n_envs must be an int >= 1 (got {n_envs!r})")
     venv = gym.make_vec(env_id, num_envs=int(n_envs), vectorization_mode="vector_entry_point",
@@ -302,5 +294,23 @@ def make_sb3_vec_env(
     if seed is not None:
         sb3.seed(seed)
     for cls, kw in wrappers:
-        sb3 = cls.vector_wrapper(sb3, **kw)
+        sb3 = cls(sb3, **kw)
     return sb3
+
+
+def vector_wrappers(env_wrapper: Any) -> list[tuple[Any, dict[str, Any]]]:
+    """The SB3 ``VecEnvWrapper`` classes (and keywords) equivalent to the single-env wrappers
+    of an ``env_wrapper`` entry, in order: each class's ``vector_wrapper`` attribute. A wrapper
+    without one raises ValueError (it cannot wrap the batched env)."""
+    from agents.env_factory import wrapper_list
+
+    out = []
+    for cls, kw in wrapper_list(env_wrapper):
+        vec_cls = getattr(cls, "vector_wrapper", None)
+        if vec_cls is None:
+            raise ValueError(
+                f"vec_env: native takes only env_wrappers with a vector equivalent (single-env "
+                f"wrappers cannot wrap the batched env); got {cls.__module__}.{cls.__name__}"
+            )
+        out.append((vec_cls, kw))
+    return out

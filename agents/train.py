@@ -61,15 +61,16 @@ from agents.hyperparams import (
 )
 from agents.loading import BEST_MODEL
 from agents.metrics import error_score, final_errors, success_kwargs, summarize
-from agents.native_vec_env import SB3_VEC_ENVS, make_sb3_vec_env
+from agents.native_vec_env import SB3_VEC_ENVS, make_sb3_vec_env, vector_wrappers
 from agents.normalization import save_stats
 from agents.run_layout import save_vecnormalize, write_args, write_run_config
 from softhand_env.envs.signature import env_signature
 
 
-def parse_args(argv: Sequence[str] | None = None) -> argparse.Namespace:
-    """Command-line arguments (see ``python -m agents.train --help``), range-checked."""
-    p = ArgumentParser(prog="python -m agents.train", description=__doc__.split("\n\n")[0])
+def make_parser(prog: str = "python -m agents.train", description: str | None = None
+                ) -> ArgumentParser:
+    """The training CLI's parser (shared with :mod:`agents.distill`, which adds its options)."""
+    p = ArgumentParser(prog=prog, description=description or __doc__.split("\n\n")[0])
     p.add_argument("--env", required=True, help="environment id, e.g. SoftHandTranslate-v0")
     p.add_argument("--algo", default="ppo", choices=sorted(ALGOS))
     p.add_argument("--conf-file", default=None,
@@ -97,7 +98,11 @@ def parse_args(argv: Sequence[str] | None = None) -> argparse.Namespace:
     p.add_argument("--torch-threads", type=int, default=1, help="torch threads, 1 .. 256")
     p.add_argument("--no-progress-bar", action="store_true")
     p.add_argument("--verbose", type=int, default=1, choices=(0, 1, 2))
-    args = p.parse_args(argv)
+    return p
+
+
+def check_args(args: argparse.Namespace) -> argparse.Namespace:
+    """Range checks of the parsed training arguments (UserError on a bad value)."""
     check_range("--seed", args.seed, 0, SEED_MAX)
     check_range("--eval-seed", args.eval_seed, 0, SEED_MAX - 10_000)
     check_range("--eval-episodes", args.eval_episodes, 1, 10_000)
@@ -113,6 +118,11 @@ def parse_args(argv: Sequence[str] | None = None) -> argparse.Namespace:
     return args
 
 
+def parse_args(argv: Sequence[str] | None = None) -> argparse.Namespace:
+    """Command-line arguments (see ``python -m agents.train --help``), range-checked."""
+    return check_args(make_parser().parse_args(argv))
+
+
 def next_run_dir(log_folder: Path, algo: str, env_id: str, name: str | None) -> Path:
     """``<log_folder>/<algo>/<name>``, or ``<env_id>_<k>`` with k = latest run id + 1, as
     ``rl_zoo3.train`` numbers its runs (so both can share a log folder)."""
@@ -125,7 +135,7 @@ def next_run_dir(log_folder: Path, algo: str, env_id: str, name: str | None) -> 
     return base / f"{env_id}_{max(ids, default=0) + 1}"
 
 
-def resolve_config(args: argparse.Namespace) -> dict[str, Any]:
+def resolve_config(args: argparse.Namespace, command: str = "agents.train") -> dict[str, Any]:
     """The run config: ``hyperparams`` (YAML entry merged with the CLI overrides, the zoo's
     dialect) and ``record`` (everything else we save with the run)."""
     check_env_id(args.env)
@@ -162,7 +172,7 @@ def resolve_config(args: argparse.Namespace) -> dict[str, Any]:
         "torch_threads": args.torch_threads,
         "vec_env": vec_env,
         "versions": versions(),
-        "command": "python -m agents.train " + shlex.join(sys.argv[1:]),
+        "command": f"python -m {command} " + shlex.join(sys.argv[1:]),
         "started": datetime.now(timezone.utc).isoformat(timespec="seconds"),
     }
     return {"hyperparams": hp, "record": record}
@@ -241,10 +251,17 @@ def build(config: dict[str, Any], verbose: int = 1) -> tuple[Any, Any]:
     env = make_sb3_vec_env(env_id, hp["n_envs"], seed, hp["env_kwargs"], rec["vec_env"],
                            env_wrapper=wrapper)
     ev = rec["eval"]
+    # with the native env the wrappers are VecEnv wrappers: the validation env gets the same
+    # chain (VecNormalize's statistics sync walks both chains level by level)
+    vector = rec["vec_env"] == "native"
     eval_env = make_vec_env(
         env_id, 1, {**hp["env_kwargs"], **ev["success_kwargs"]}, None,
-        seeds=goal_seeds(ev["eval_seed"], ev["n_eval_episodes"]), env_wrapper=wrapper,
+        seeds=goal_seeds(ev["eval_seed"], ev["n_eval_episodes"]),
+        env_wrapper=None if vector else wrapper,
     )
+    if vector:
+        for cls, wkw in vector_wrappers(wrapper):
+            eval_env = cls(eval_env, **wkw)
     try:
         if norm is not None:
             norm_kw = {"gamma": kwargs.get("gamma", 0.99), **norm}

@@ -1,0 +1,254 @@
+"""Teacher-student distillation (DAgger): a blind student imitates a privileged teacher.
+
+The teacher is a saved PPO run trained with ``privileged_obs=True`` (its policy reads the
+blind observation *and* the privileged physics state: object pose and velocity, deformations,
+goal error). It sees where the object is, so it can close the loop on the pose. The student is
+the policy of an ordinary run config (the ``--conf-file`` entry, e.g. a blind ``MlpPolicy``
+with the time feature): it reads only the blind ``observation`` (joint sensing, goal, the
+wrappers' features) and learns to act as the teacher would, by DAgger (Ross et al., 2011):
+
+1. roll out ``n_envs`` hands on the native vector env, each step acting with the teacher's
+   action with probability ``beta_k = beta_decay ** k`` (iteration k), else the student's;
+2. label every visited state with the teacher's deterministic action (from the privileged
+   observation of that state) and add (blind observation, label) to the data set;
+3. fit the student's mean action to the labels (mean squared error, Adam), then validate the
+   student alone on the validation goals (``reset(seed=eval_seed + k)``, the benchmark's success
+   rule) and keep the best iteration.
+
+Nothing of the teacher is in the student's inputs or outputs: at play time the student is a
+plain blind policy. The result is saved as a run in the layout of :mod:`agents.train` (a PPO
+zip whose actor is the student; ``algo: ppo``, ``trainer: dagger`` and the teacher's path and
+checksum in the record), so ``agents.evaluate --model <run>`` plays it and ``agents.train``
+can fine-tune it. Usage::
+
+    python -m agents.distill --env SoftHandPose-v0 --teacher logs/ppo/SoftHandPose-v0_1 \\
+        --conf-file softhand_env/configs/agents/ppo_native.yml --log-folder logs
+"""
+
+from __future__ import annotations
+
+import argparse
+import time
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from agents.cli import UserError, check_range, run_cli
+from agents.env_factory import make_env, task_targets, wrapper_list
+from agents.loading import BEST_MODEL, ModelPolicy
+from agents.metrics import final_errors, success_kwargs, summarize
+from agents.model_files import sha256
+from agents.native_vec_env import make_sb3_vec_env
+from agents.run_layout import write_args, write_run_config
+from agents.train import build, check_args, make_parser, next_run_dir, resolve_config
+from softhand_env.envs.signature import env_signature
+
+#: Dict-observation key of the blind part (what the student reads).
+BLIND_KEY = "observation"
+
+
+def parse_args(argv: Sequence[str] | None = None) -> argparse.Namespace:
+    """Arguments of ``agents.train`` plus the teacher and the DAgger schedule."""
+    p = make_parser("python -m agents.distill", __doc__.split("\n\n")[0])
+    p.add_argument("--teacher", required=True,
+                   help="run directory (or zip) of a privileged teacher (privileged_obs=True)")
+    p.add_argument("--iterations", type=int, default=30, help="DAgger iterations, 1 .. 10000")
+    p.add_argument("--rollout-steps", type=int, default=50,
+                   help="control steps per env and iteration, 1 .. 100000")
+    p.add_argument("--beta-decay", type=float, default=0.5,
+                   help="teacher-action probability at iteration k: beta_decay**k, in [0, 1]")
+    p.add_argument("--epochs", type=int, default=2,
+                   help="passes over the aggregated data per iteration, 1 .. 1000")
+    p.add_argument("--batch-size", type=int, default=1024, help="minibatch, 1 .. 1e6")
+    p.add_argument("--lr", type=float, default=1e-3, help="Adam step size, (0, 1]")
+    p.add_argument("--max-samples", type=int, default=2_000_000,
+                   help="data set cap (oldest dropped first), 1 .. 1e8")
+    args = check_args(p.parse_args(argv))
+    check_range("--iterations", args.iterations, 1, 10_000)
+    check_range("--rollout-steps", args.rollout_steps, 1, 100_000)
+    check_range("--beta-decay", args.beta_decay, 0.0, 1.0)
+    check_range("--epochs", args.epochs, 1, 1000)
+    check_range("--batch-size", args.batch_size, 1, 1_000_000)
+    check_range("--max-samples", args.max_samples, 1, 100_000_000)
+    if not 0.0 < args.lr <= 1.0:
+        raise UserError(f"--lr must be in (0, 1] (got {args.lr!r})")
+    return args
+
+
+def check_pair(teacher: ModelPolicy, env_id: str, hp: dict[str, Any]) -> dict[str, Any]:
+    """The student's env keywords after checking that the teacher plays the same env with
+    the privileged observation (same task, keywords, wrappers); UserError otherwise."""
+    if teacher.env_id != env_id:
+        raise UserError(f"the teacher was trained on {teacher.env_id}, not {env_id}")
+    t_kwargs = dict(teacher.env_kwargs)
+    if not t_kwargs.pop("privileged_obs", False):
+        raise UserError("the teacher must be a run with env_kwargs privileged_obs: true")
+    s_kwargs = dict(hp["env_kwargs"])
+    if s_kwargs.get("privileged_obs") or s_kwargs.get("goal_obs"):
+        raise UserError("the student reads the plain blind observation: leave privileged_obs "
+                        "and goal_obs out of its env_kwargs")
+    if t_kwargs != s_kwargs:
+        raise UserError(f"teacher and student env_kwargs differ (besides privileged_obs): "
+                        f"{t_kwargs} vs {s_kwargs}")
+    if wrapper_list(teacher.env_wrapper) != wrapper_list(hp.get("env_wrapper")):
+        raise UserError("teacher and student must have the same env_wrapper")
+    if hp.get("normalize") not in (None, False):
+        raise UserError("the student learns on raw observations: set normalize: false in its "
+                        "entry")
+    return s_kwargs
+
+
+def student_mean(policy: Any, obs: Any) -> Any:
+    """Mean action (torch (B, act_dim)) of an SB3 ActorCriticPolicy for observations ``obs``."""
+    features = policy.extract_features(obs, policy.pi_features_extractor)
+    return policy.action_net(policy.mlp_extractor.forward_actor(features))
+
+
+def validate(model: Any, env_id: str, kwargs: dict[str, Any], wrapper: Any,
+             eval_seed: int, n_eval: int) -> dict[str, float]:
+    """Success and final errors of the deterministic student on goals ``eval_seed + k``,
+    k < n_eval (one native vector env of n_eval hands; the first episode of each)."""
+    venv = make_sb3_vec_env(env_id, n_eval, eval_seed, kwargs, "native", env_wrapper=wrapper)
+    targets = task_targets(env_id)
+    obs = venv.reset()
+    finished: dict[int, dict[str, Any]] = {}
+    while len(finished) < n_eval:
+        action, _ = model.predict(obs, deterministic=True)
+        obs, _, dones, infos = venv.step(action)
+        for i in np.flatnonzero(dones):
+            finished.setdefault(int(i), infos[i])
+    venv.close()
+    infos = [finished[i] for i in range(n_eval)]
+    return summarize(targets, [bool(info.get("is_success", False)) for info in infos],
+                     [final_errors(info, targets) for info in infos])
+
+
+def dagger(model: Any, teacher: ModelPolicy, env_id: str, kwargs: dict[str, Any], wrapper: Any,
+           n_envs: int, seed: int, args: argparse.Namespace, log: Any = print
+           ) -> tuple[dict[str, Any], list[dict[str, float]]]:
+    """Train ``model``'s actor by DAgger (module doc); returns the best validation summary
+    (its weights are loaded back into ``model``) and the per-iteration curve."""
+    import torch
+
+    rng = np.random.default_rng(seed)
+    venv = make_sb3_vec_env(env_id, n_envs, seed, {**kwargs, "privileged_obs": True}, "native",
+                            env_wrapper=wrapper)
+    policy = model.policy
+    params = [*policy.mlp_extractor.policy_net.parameters(), *policy.action_net.parameters()]
+    opt = torch.optim.Adam(params, lr=args.lr)
+    low = torch.as_tensor(model.action_space.low)
+    high = torch.as_tensor(model.action_space.high)
+    xs: list[np.ndarray] = []
+    ys: list[np.ndarray] = []
+    eval_kwargs = {**kwargs, **success_kwargs(env_id)}
+    best: dict[str, Any] | None = None
+    best_state: dict[str, Any] | None = None
+    curve: list[dict[str, float]] = []
+    obs: Any = venv.reset()
+    steps = 0
+    t0 = time.time()
+    for k in range(args.iterations):
+        beta = args.beta_decay ** k
+        for _ in range(args.rollout_steps):
+            t_act, _ = teacher.model.predict(teacher.normalize(obs), deterministic=True)
+            blind = obs[BLIND_KEY]
+            xs.append(blind.astype(np.float32))
+            ys.append(np.asarray(t_act, dtype=np.float32))
+            s_act, _ = model.predict(blind, deterministic=True)
+            use_teacher = rng.random(n_envs) < beta
+            obs, _, _, _ = venv.step(np.where(use_teacher[:, None], t_act, s_act))
+            steps += n_envs
+        total = sum(len(x) for x in xs)
+        while total - len(xs[0]) >= args.max_samples:
+            total -= len(xs.pop(0))
+            ys.pop(0)
+        x_all = torch.as_tensor(np.concatenate(xs))
+        y_all = torch.clamp(torch.as_tensor(np.concatenate(ys)), low, high)
+        n = len(x_all)
+        loss = torch.zeros(())
+        for _ in range(args.epochs):
+            perm = torch.randperm(n)
+            for start in range(0, n, args.batch_size):
+                idx = perm[start:start + args.batch_size]
+                loss = ((student_mean(policy, x_all[idx]) - y_all[idx]) ** 2).mean()
+                opt.zero_grad()
+                loss.backward()
+                opt.step()
+        summary = validate(model, env_id, eval_kwargs, wrapper, args.eval_seed,
+                           args.eval_episodes)
+        point = {"iteration": k, "env_steps": steps, "wall_s": round(time.time() - t0, 1),
+                 "beta": beta, "loss": float(loss.detach()), "samples": n, **summary}
+        curve.append(point)
+        log(f"iteration {k}: beta {beta:.3f}, loss {point['loss']:.5f}, {n} samples, "
+            f"validation success {summary['success_rate']:.0%} ({point['wall_s']} s)")
+        rank = (summary["success_rate"], -sum(v for key, v in summary.items()
+                                              if key.startswith("median_")))
+        if best is None or rank > best["rank"]:
+            best = {"rank": rank, "iteration": k, "env_steps": steps, **summary}
+            best_state = {key: v.clone() for key, v in policy.state_dict().items()}
+    venv.close()
+    assert best is not None and best_state is not None
+    policy.load_state_dict(best_state)
+    best.pop("rank")
+    return best, curve
+
+
+def main(argv: Sequence[str] | None = None) -> Path:
+    """CLI entry point; returns the run directory of the student."""
+    args = parse_args(argv)
+    config = resolve_config(args, command="agents.distill")
+    hp, rec = config["hyperparams"], config["record"]
+    if args.algo != "ppo":
+        raise UserError("the student is saved as a PPO policy: use --algo ppo")
+    teacher = ModelPolicy(args.teacher)
+    kwargs = check_pair(teacher, args.env, hp)
+    wrapper = hp.get("env_wrapper")
+    probe = make_env(args.env, kwargs, wrapper)
+    rec["env_signature"] = env_signature(probe)
+    probe.close()
+    teacher_env = make_env(args.env, {**kwargs, "privileged_obs": True}, wrapper)
+    teacher.check_env(teacher_env)
+    teacher_env.close()
+    model, eval_env = build(config, verbose=0)
+    eval_env.close()
+    model.get_env().close()
+    run_dir = next_run_dir(Path(args.log_folder), "ppo", args.env, args.run_name)
+    if run_dir.exists():
+        raise UserError(f"run directory {run_dir} exists (choose another --run-name)")
+    (run_dir / args.env).mkdir(parents=True)
+    write_args(run_dir, args.env, {
+        "algo": "ppo", "seed": args.seed, "conf_file": rec["conf_file"], "n_timesteps": 0,
+        "device": args.device, "num_threads": args.torch_threads, "vec_env": "native",
+        "eval_freq": 0, "eval_episodes": args.eval_episodes, "save_freq": 0,
+        "log_folder": str(args.log_folder)})
+    print(f"run directory: {run_dir}")
+    t0 = time.time()
+    best, curve = dagger(model, teacher, args.env, kwargs, wrapper, hp["n_envs"], args.seed,
+                         args)
+    wall = round(time.time() - t0, 1)
+    model.save(run_dir / f"{args.env}.zip")
+    model.save(run_dir / f"{BEST_MODEL}.zip")
+    arrays: dict[str, Any] = {key: np.array([p[key] for p in curve]) for key in curve[0]}
+    np.savez(run_dir / "dagger_curve.npz", **arrays)
+    rec.update({
+        "trainer": "dagger",
+        "teacher": {"path": str(teacher.path), "sha256": sha256(teacher.path),
+                    "wall_time_s": teacher.run.record.get("wall_time_s"),
+                    "total_timesteps": teacher.run.record.get("total_timesteps")},
+        "dagger": {key: getattr(args, key) for key in ("iterations", "rollout_steps",
+                                                       "beta_decay", "epochs", "batch_size",
+                                                       "lr", "max_samples")},
+        "wall_time_s": wall, "total_timesteps": int(curve[-1]["env_steps"]),
+        "best_validation": {key: (float(v) if key != "iteration" else int(v))
+                            for key, v in best.items()},
+    })
+    write_run_config(run_dir, args.env, hp, rec)
+    print(f"saved {run_dir / (args.env + '.zip')}: validation success "
+          f"{best['success_rate']:.0%} (iteration {best['iteration']}, {wall} s)")
+    return run_dir
+
+
+if __name__ == "__main__":
+    run_cli(main)
