@@ -85,12 +85,15 @@ class ModelRun:
 
 
 def shipped_models() -> dict[str, Path]:
-    """Env id -> model zip of the shipped models."""
+    """Name -> model zip of the shipped models: the env id names its default model (the run
+    ``<env id>_1``, first in sorted order) and every run is also named by its directory
+    (``SoftHandPose-v0_residual``)."""
     out: dict[str, Path] = {}
     for zip_path in sorted(MODELS_DIR.glob("*/*_*/*.zip")):
         env_id = zip_path.stem
         if zip_path.parent.name.startswith(env_id + "_"):
             out.setdefault(env_id, zip_path)
+            out.setdefault(zip_path.parent.name, zip_path)
     return out
 
 

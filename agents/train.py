@@ -92,6 +92,8 @@ def make_parser(prog: str = "python -m agents.train", description: str | None = 
                    help="evaluate every this many env steps (<= 0: never)")
     p.add_argument("--eval-episodes", type=int, default=20, help="validation goals, 1 .. 10000")
     p.add_argument("--eval-seed", type=int, default=5000, help="seed of the validation goals")
+    p.add_argument("--stop-success", type=float, default=None,
+                   help="stop once the validation success rate reaches this, in (0, 1]")
     p.add_argument("--save-freq", type=int, default=250_000,
                    help="checkpoint every this many env steps (<= 0: never)")
     p.add_argument("--device", default="cpu", choices=("cpu", "cuda", "auto"))
@@ -107,6 +109,8 @@ def check_args(args: argparse.Namespace) -> argparse.Namespace:
     check_range("--eval-seed", args.eval_seed, 0, SEED_MAX - 10_000)
     check_range("--eval-episodes", args.eval_episodes, 1, 10_000)
     check_range("--torch-threads", args.torch_threads, 1, 256)
+    if args.stop_success is not None and not 0.0 < args.stop_success <= 1.0:
+        raise UserError(f"--stop-success must be in (0, 1] (got {args.stop_success!r})")
     if args.n_timesteps is not None:
         check_range("--n-timesteps", args.n_timesteps, 1, 10**10)
     if args.run_name is not None and (not args.run_name or Path(args.run_name).name
@@ -167,7 +171,8 @@ def resolve_config(args: argparse.Namespace, command: str = "agents.train") -> d
                       "n_timesteps": args.n_timesteps},
         "save_freq": args.save_freq,
         "eval": {"eval_freq": args.eval_freq, "n_eval_episodes": args.eval_episodes,
-                 "eval_seed": args.eval_seed, "success_kwargs": success_kwargs(args.env)},
+                 "eval_seed": args.eval_seed, "success_kwargs": success_kwargs(args.env),
+                 "stop_success": args.stop_success},
         "device": args.device,
         "torch_threads": args.torch_threads,
         "vec_env": vec_env,
@@ -182,9 +187,14 @@ class HeldOutEvalCallback(EvalCallback):
     """EvalCallback on a fixed goal set: logs the success rate and the final errors, keeps
     the best model (``best_model.zip``) and its statistics by (success rate, -median error)."""
 
-    def __init__(self, targets: tuple[str, ...], run_dir: Path, **kwargs: Any):
+    def __init__(self, targets: tuple[str, ...], run_dir: Path,
+                 stop_success: float | None = None, **kwargs: Any):
         super().__init__(best_model_save_path=None, **kwargs)
         self.targets = targets
+        #: Stop training once the validation success rate reaches this (None: never).
+        self.stop_success = stop_success
+        #: Env steps at which training stopped on ``stop_success`` (None: it did not).
+        self.stopped_at: int | None = None
         self.run_dir = run_dir
         self.best_key: tuple[float, float] | None = None
         self.best_summary: dict[str, Any] | None = None
@@ -218,6 +228,11 @@ class HeldOutEvalCallback(EvalCallback):
             errs = ", ".join(f"{k} {v:.3g}" for k, v in summary.items() if "median" in k)
             print(f"validation: success {summary['success_rate']:.0%}, {errs}")
         self.logger.dump(self.num_timesteps)
+        if self.stop_success is not None and summary["success_rate"] >= self.stop_success:
+            self.stopped_at = int(self.num_timesteps)
+            if self.verbose:
+                print(f"validation success >= {self.stop_success:.0%}: training stops")
+            return False
         return keep_going
 
 
@@ -291,6 +306,7 @@ def train(config: dict[str, Any], run_dir: Path, model: Any, eval_env: Any,
     n_envs = hp["n_envs"]
     evaluation = HeldOutEvalCallback(
         targets=task_targets(env_id), run_dir=run_dir, eval_env=eval_env,
+        stop_success=ev.get("stop_success"),
         n_eval_episodes=ev["n_eval_episodes"],
         eval_freq=max(ev["eval_freq"] // n_envs, 1) if ev["eval_freq"] > 0 else 0,
         log_path=str(run_dir), deterministic=True, verbose=1,
@@ -314,6 +330,7 @@ def train(config: dict[str, Any], run_dir: Path, model: Any, eval_env: Any,
     rec["wall_time_s"] = round(time.time() - t0, 1)
     rec["total_timesteps"] = int(model.num_timesteps)
     rec["interrupted"] = interrupted
+    rec["stopped_on_success_at"] = evaluation.stopped_at
     if evaluation.best_summary is not None:
         rec["best_validation"] = {k: (float(v) if k != "timesteps" else v)
                                   for k, v in evaluation.best_summary.items()}

@@ -106,6 +106,23 @@ def test_sac_in_process_run_and_next_run_directory(tmp_path):
     np.testing.assert_array_equal(action, plain.predict(obs, deterministic=True)[0])
 
 
+def test_training_stops_once_validation_success_reaches_the_threshold(tmp_path, monkeypatch):
+    real = train.summarize
+
+    def perfect(*args, **kwargs):  # every validation reports 100 %
+        return {**real(*args, **kwargs), "success_rate": 1.0}
+
+    monkeypatch.setattr(train, "summarize", perfect)
+    run = train.main(["--env", "SoftHandReorient-v0", "--n-timesteps", "4096",
+                      "--eval-freq", "64", "--eval-episodes", "1", "--stop-success", "0.9",
+                      "--save-freq", "0", "--log-folder", str(tmp_path), "--no-progress-bar",
+                      "--verbose", "0", "--hyperparams", "n_envs:2", "n_steps:32",
+                      "batch_size:32", "n_epochs:1"])
+    record = loading.ModelPolicy(run).run.record
+    assert record["stopped_on_success_at"] == 64  # the first validation, not 4096 steps
+    assert record["total_timesteps"] == 64 and record["eval"]["stop_success"] == 0.9
+
+
 def test_hyperparams_anchor_merge_and_schedules(tmp_path):
     conf = tmp_path / "ppo.yml"
     conf.write_text(
@@ -153,6 +170,7 @@ def test_goal_seeds_replay_the_same_goals_after_rewind():
         (["--env", "SoftHandTranslate-v0", "--env-kwargs", "novalue"], "key:value"),
         (["--env", "SoftHandTranslate-v0", "--hyperparams", "not_a_ppo_key:1"], "no hyper-param"),
         (["--env", "SoftHandTranslate-v0", "--conf-file", "/nonexistent.yml"], "not found"),
+        (["--env", "SoftHandTranslate-v0", "--stop-success", "0"], "--stop-success"),
     ],
 )
 def test_wrong_inputs_exit_2_with_one_line(tmp_path, capsys, argv, fragment):
