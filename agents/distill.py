@@ -37,7 +37,7 @@ import numpy as np
 
 from agents.cli import UserError, check_range, run_cli
 from agents.env_factory import make_env, task_targets, wrapper_list
-from agents.loading import BEST_MODEL, ModelPolicy
+from agents.loading import ModelPolicy
 from agents.metrics import final_errors, success_kwargs, summarize
 from agents.model_files import sha256
 from agents.native_vec_env import make_sb3_vec_env
@@ -228,8 +228,7 @@ def main(argv: Sequence[str] | None = None) -> Path:
     best, curve = dagger(model, teacher, args.env, kwargs, wrapper, hp["n_envs"], args.seed,
                          args)
     wall = round(time.time() - t0, 1)
-    model.save(run_dir / f"{args.env}.zip")
-    model.save(run_dir / f"{BEST_MODEL}.zip")
+    model.save(run_dir / f"{args.env}.zip")  # the best iteration's weights (dagger())
     arrays: dict[str, Any] = {key: np.array([p[key] for p in curve]) for key in curve[0]}
     np.savez(run_dir / "dagger_curve.npz", **arrays)
     rec.update({

@@ -144,7 +144,9 @@ def run_episode(
     goal: Sequence[float] | None = None,
 ) -> dict[str, Any]:
     """Play one episode from ``reset(seed=seed)`` (with ``options={"goal": goal}`` if given,
-    SI units, shape (goal_dim,)); returns its record (trajectory included).
+    SI units, shape (goal_dim,)); returns its record (trajectory included;
+    ``max_friction_ratio``: the largest step friction ratio |J_t| / J_n of either finger, the
+    friction coefficient the episode needed).
 
     ``frames``: if a list, ``env.render()`` frames are appended (``render_mode="rgb_array"``).
     """
@@ -157,13 +159,14 @@ def run_episode(
     if frames is not None:
         frames.append(env.render())
     state, start = None, np.array([True])
-    ret, steps = 0.0, 0
+    ret, steps, friction = 0.0, 0, 0.0
     while True:
         action, state = policy.predict(obs, state, start, deterministic)
         start = np.array([False])
         obs, reward, terminated, truncated, info = env.step(action)
         ret += float(reward)
         steps += 1
+        friction = max(friction, float(np.max(info["friction_ratio"])))
         poses.append(info["object_pose"])
         setpoints.append(info["setpoint"])
         if frames is not None:
@@ -178,6 +181,7 @@ def run_episode(
         "return": ret,
         "length": steps,
         "termination_reason": info.get("termination_reason"),
+        "max_friction_ratio": friction,
         "pose": np.array(poses),
         "setpoint": np.array(setpoints),
     }
@@ -204,6 +208,7 @@ def evaluate(
     )
     summary["n_failures"] = sum(ep["termination_reason"] not in (None, "success")
                                 for ep in episodes)
+    summary["max_friction_ratio"] = max(ep["max_friction_ratio"] for ep in episodes)
     return summary, episodes
 
 
@@ -222,6 +227,8 @@ def format_table(title: str, summary: dict[str, float], targets: Sequence[str]) 
     rows += [("return (mean)", f"{summary['mean_return']:.2f}"),
              ("episode length (mean)", f"{summary['mean_length']:.1f}"),
              ("failures (grasp lost etc.)", f"{summary['n_failures']:d}")]
+    if "max_friction_ratio" in summary:
+        rows.append(("friction needed (max |J_t| / J_n)", f"{summary['max_friction_ratio']:.3f}"))
     width = max(len(r[0]) for r in rows)
     lines = [title, "-" * len(title)] + [f"{a:<{width}}  {b}" for a, b in rows]
     return "\n".join(lines)

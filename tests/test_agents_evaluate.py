@@ -140,8 +140,10 @@ def _write_config(run, config, env_id="SoftHandTranslate-v0"):
 
 def test_shipped_models_carry_the_signature_of_their_env():
     assert set(SHIPPED) <= set(SHIPPED_ZIPS)
-    for env_id, zip_path in SHIPPED_ZIPS.items():
+    for name, zip_path in SHIPPED_ZIPS.items():  # by env id and by run directory name
         policy = loading.ModelPolicy(zip_path.parent)
+        env_id = policy.env_id
+        assert name in (env_id, zip_path.parent.name) and zip_path.stem == env_id
         assert policy.run.record["env_signature"]["env_id"] == env_id
         policy.check_env(env_factory.make_env(env_id, policy.env_kwargs, policy.env_wrapper))
 
