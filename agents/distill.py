@@ -54,7 +54,7 @@ def parse_args(argv: Sequence[str] | None = None) -> argparse.Namespace:
     p = make_parser("python -m agents.distill", __doc__.split("\n\n")[0])
     p.add_argument("--teacher", required=True,
                    help="run directory (or zip) of a privileged teacher (privileged_obs=True)")
-    p.add_argument("--iterations", type=int, default=30, help="DAgger iterations, 1 .. 10000")
+    p.add_argument("--iterations", type=int, default=40, help="DAgger iterations, 1 .. 10000")
     p.add_argument("--rollout-steps", type=int, default=50,
                    help="control steps per env and iteration, 1 .. 100000")
     p.add_argument("--beta-decay", type=float, default=0.5,

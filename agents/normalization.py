@@ -90,6 +90,7 @@ class ObsNormalizer:
                 per_key = [f"{m}.{k}" for k in keys or () for m in ("obs_mean", "obs_var",
                                                                    "obs_count")]
                 wanted = [k for k in STATS_KEYS if keys is None or not k.startswith("obs_")]
+                wanted = [k for k in wanted if k in names or k != "obs_count"]
                 arrays = {k: np.asarray(data[k]) for k in wanted + per_key}
         except KeyError as exc:
             raise ValueError(f"{path}: missing array {exc}") from None
@@ -100,6 +101,10 @@ class ObsNormalizer:
                 raise ValueError(f"{path}: {key} must hold finite numbers")
         self.keys = keys
         self.moments: dict[str, tuple[np.ndarray, np.ndarray]] = {}
+        #: Observations the moments were averaged over (None: a Box; key -> count: a Dict).
+        self.count = (float(arrays["obs_count"]) if keys is None and "obs_count" in arrays
+                      else None)
+        self.counts = {k: float(arrays[f"obs_count.{k}"]) for k in keys or ()}
         if keys is None:
             if isinstance(obs_dim, dict):
                 raise ValueError(f"{path}: statistics of a Box observation, the model has a "

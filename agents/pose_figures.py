@@ -79,8 +79,9 @@ def parse_args(argv: Sequence[str] | None = None) -> argparse.Namespace:
                    help="grid x* in [-span, span] (mm), 0.5 .. 100 (default 15)")
     p.add_argument("--span-deg", type=float, default=15.0,
                    help="grid theta* in [-span, span] (deg), 0.5 .. 90 (default 15)")
-    p.add_argument("--goal-seed", type=int, default=10000,
-                   help="episode k: reset(seed=GOAL_SEED + k); 0 .. 2**32 - 1 - grid**2")
+    p.add_argument("--goal-seed", type=int, default=20000,
+                   help="episode k: reset(seed=GOAL_SEED + k); 0 .. 2**32 - 1 - grid**2 (default "
+                        "20000: apart from the training, validation and test goals)")
     p.add_argument("--goal-x-mm", type=float, default=-6.0,
                    help="manoeuvre goal x* (mm), within +-span-mm (default -6)")
     p.add_argument("--goal-theta-deg", type=float, default=8.0,

@@ -92,6 +92,10 @@ def make_parser(prog: str = "python -m agents.train", description: str | None = 
                    help="evaluate every this many env steps (<= 0: never)")
     p.add_argument("--eval-episodes", type=int, default=20, help="validation goals, 1 .. 10000")
     p.add_argument("--eval-seed", type=int, default=5000, help="seed of the validation goals")
+    p.add_argument("--trained-agent", default=None,
+                   help="start from a saved model (run directory, zip or shipped name): its "
+                        "weights and observation statistics; the env id may differ (e.g. the "
+                        "Random id of the same task) if the spaces match")
     p.add_argument("--stop-success", type=float, default=None,
                    help="stop once the validation success rate reaches this, in (0, 1]")
     p.add_argument("--save-freq", type=int, default=250_000,
@@ -175,6 +179,7 @@ def resolve_config(args: argparse.Namespace, command: str = "agents.train") -> d
                  "stop_success": args.stop_success},
         "device": args.device,
         "torch_threads": args.torch_threads,
+        "trained_agent": getattr(args, "trained_agent", None),
         "vec_env": vec_env,
         "versions": versions(),
         "command": f"python -m {command} " + shlex.join(sys.argv[1:]),
@@ -293,6 +298,45 @@ def build(config: dict[str, Any], verbose: int = 1) -> tuple[Any, Any]:
     return model, eval_env
 
 
+def start_from(model: Any, spec: str, record: dict[str, Any]) -> None:
+    """Load the weights and observation statistics of the saved model ``spec`` into ``model``
+    (same algorithm and policy, same observation and action spaces; the env id may differ).
+    The source's path, sha256, env id, steps and wall time go to ``record["trained_agent"]``.
+    """
+    from agents.loading import ModelPolicy
+    from agents.model_files import sha256
+
+    src = ModelPolicy(spec)
+    if type(src.model) is not type(model) or type(src.model.policy) is not type(model.policy):
+        raise UserError(f"--trained-agent {spec}: a {type(src.model.policy).__name__} of "
+                        f"{src.algo}, not the run's {type(model.policy).__name__}")
+    for name in ("observation_space", "action_space"):
+        if getattr(src.model, name) != getattr(model, name):
+            raise UserError(f"--trained-agent {spec}: its {name} differs from the run's")
+    try:
+        model.policy.load_state_dict(src.model.policy.state_dict())
+    except RuntimeError as exc:  # other network sizes
+        raise UserError(f"--trained-agent {spec}: weights do not fit the run's policy "
+                        f"({' '.join(str(exc).split())[:200]})") from None
+    vecnorm = model.get_vec_normalize_env()
+    if (vecnorm is None) != (src.normalizer is None):
+        raise UserError(f"--trained-agent {spec}: observation normalisation differs from the "
+                        "run's (normalize)")
+    if vecnorm is not None:
+        norm = src.normalizer
+        if norm.keys is None:
+            vecnorm.obs_rms.mean, vecnorm.obs_rms.var = norm.mean.copy(), norm.var.copy()
+            vecnorm.obs_rms.count = norm.count or vecnorm.obs_rms.count
+        else:
+            for key, (mean, var) in norm.moments.items():
+                vecnorm.obs_rms[key].mean, vecnorm.obs_rms[key].var = mean.copy(), var.copy()
+                vecnorm.obs_rms[key].count = norm.counts.get(key) or vecnorm.obs_rms[key].count
+    record["trained_agent"] = {
+        "path": str(src.path), "sha256": sha256(src.path), "env_id": src.env_id,
+        "total_timesteps": src.run.record.get("total_timesteps"),
+        "wall_time_s": src.run.record.get("wall_time_s")}
+
+
 def train(config: dict[str, Any], run_dir: Path, model: Any, eval_env: Any,
           progress_bar: bool = True) -> Any:
     """Learn (validation and checkpoints as configured), save the run; returns the model."""
@@ -353,6 +397,8 @@ def main(argv: Sequence[str] | None = None) -> Path:
     rec["env_signature"] = env_signature(probe)  # checked when the model is loaded
     probe.close()
     model, eval_env = build(config, verbose=args.verbose)
+    if args.trained_agent is not None:
+        start_from(model, args.trained_agent, rec)
     run_dir = next_run_dir(Path(args.log_folder), args.algo, args.env, args.run_name)
     if run_dir.exists():
         raise UserError(f"run directory {run_dir} exists (choose another --run-name)")

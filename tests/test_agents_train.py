@@ -9,6 +9,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+import torch
 import yaml
 
 from agents import cli, env_factory, hyperparams, loading, train
@@ -121,6 +122,26 @@ def test_training_stops_once_validation_success_reaches_the_threshold(tmp_path, 
     record = loading.ModelPolicy(run).run.record
     assert record["stopped_on_success_at"] == 64  # the first validation, not 4096 steps
     assert record["total_timesteps"] == 64 and record["eval"]["stop_success"] == 0.9
+
+
+def test_training_can_start_from_a_saved_model_of_another_env_id(tmp_path):
+    native = str(Path(hyperparams.config_path("ppo", None)).with_name("ppo_native.yml"))
+    tiny = ["--n-timesteps", "64", "--eval-freq", "0", "--save-freq", "0", "--no-progress-bar",
+            "--verbose", "0", "--log-folder", str(tmp_path), "--conf-file", native,
+            "--hyperparams", "n_envs:2", "n_steps:32", "batch_size:32", "n_epochs:1"]
+    first = train.main(["--env", "SoftHandReorient-v0", *tiny])
+    # learning rate 0: the weights stay those of the start model (a Random-id run)
+    second = train.main(["--env", "SoftHandReorientRandom-v0", "--trained-agent", str(first),
+                         *tiny[:-5], "--hyperparams", "n_envs:2", "n_steps:32",
+                         "batch_size:32", "n_epochs:1", "learning_rate:0.0"])
+    a, b = loading.ModelPolicy(first), loading.ModelPolicy(second)
+    for key, value in a.model.policy.state_dict().items():
+        assert torch.equal(value, b.model.policy.state_dict()[key]), key
+    record = b.run.record["trained_agent"]
+    assert record["env_id"] == "SoftHandReorient-v0" and len(record["sha256"]) == 64
+    with pytest.raises(cli.UserError, match="observation_space differs"):  # Pose: 10 entries
+        train.main(["--env", "SoftHandReorient-v0", "--trained-agent", str(first), *tiny,
+                    "--env-kwargs", "history_len:2"])
 
 
 def test_hyperparams_anchor_merge_and_schedules(tmp_path):

@@ -58,11 +58,12 @@ def _enjoy_success(env_id: str, n_steps: int, cwd: Path) -> tuple[float, int]:
 @pytest.mark.slow
 @pytest.mark.parametrize("env_id,floor,steps", [("SoftHandTranslate-v0", 0.95, 5000),
                                                 ("SoftHandReorient-v0", 0.95, 5000),
-                                                ("SoftHandPose-v0", 0.80, 8000)])
+                                                ("SoftHandPose-v0", 0.90, 8000)])
 def test_zoo_enjoy_plays_the_shipped_models_as_well_as_agents_evaluate(tmp_path, env_id,
                                                                         floor, steps):
     """rl_zoo3.enjoy on the shipped runs (its own seeds, 20 episodes): the floors of the
-    README table's tasks (measured with enjoy over ~100 episodes: 100 %, 100 %, 95.9 %)."""
+    README table's tasks (measured with enjoy: 100 %, 100 % over ~100 episodes; Pose, the agent
+    learned without the plan, 98.1 % over 160 episodes)."""
     rate, episodes = _enjoy_success(env_id, steps, tmp_path)
     assert episodes >= 19 and rate >= floor, (rate, episodes)
 
