@@ -29,10 +29,13 @@ GOAL_ENVS = ("SoftHandReorient-v0", "SoftHandTranslate-v0", "SoftHandPose-v0")
 
 
 def learned_label(model: str | Path) -> str:
-    """Table label of a model, from its run config (algorithm, residual or not)."""
+    """Table label of a model, from its run config (algorithm; residual on the loop plan, or a
+    blind student distilled from a privileged teacher)."""
     run = resolve_model(model)
     wrappers = str(run.hyperparams.get("env_wrapper") or "")
     residual = ", residual on the loop plan" if "ResidualWrapper" in wrappers else ""
+    if run.record.get("trainer") == "dagger":
+        return "learned (privileged PPO teacher -> blind student, no plan)"
     return f"learned ({run.algo.upper()}{residual})"
 
 

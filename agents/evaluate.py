@@ -145,8 +145,9 @@ def run_episode(
 ) -> dict[str, Any]:
     """Play one episode from ``reset(seed=seed)`` (with ``options={"goal": goal}`` if given,
     SI units, shape (goal_dim,)); returns its record (trajectory included;
-    ``max_friction_ratio``: the largest step friction ratio |J_t| / J_n of either finger, the
-    friction coefficient the episode needed).
+    ``max_friction_ratio``: the largest step friction ratio |J_t| / J_n of either finger over
+    the steps that did not end the episode with a failure other than slip, i.e. the friction
+    coefficient the episode needed while the grasp held).
 
     ``frames``: if a list, ``env.render()`` frames are appended (``render_mode="rgb_array"``).
     """
@@ -166,7 +167,8 @@ def run_episode(
         obs, reward, terminated, truncated, info = env.step(action)
         ret += float(reward)
         steps += 1
-        friction = max(friction, float(np.max(info["friction_ratio"])))
+        if info.get("termination_reason") in (None, "slip"):  # the grasp held (or slipped)
+            friction = max(friction, float(np.max(info["friction_ratio"])))
         poses.append(info["object_pose"])
         setpoints.append(info["setpoint"])
         if frames is not None:

@@ -42,7 +42,7 @@ def test_npz_is_consistent_with_the_success_tolerance(small_run):
     assert d["final_pose"].shape == (1, 3, 3, 3)
     assert d["goal"].shape == (3, 3, 2)
     np.testing.assert_allclose(d["goal"][2, 0], [-12e-3, math.radians(12)])  # [i_theta, i_x]
-    assert d["seed"].ravel().tolist() == list(range(10000, 10009))
+    assert d["seed"].ravel().tolist() == list(range(20000, 20009))
     assert set(d["outcome"].ravel()) <= set(OUTCOMES)
     assert np.array_equal(d["success"], d["outcome"] == "success")
     assert d["control_dt"].tolist() == [0.02]

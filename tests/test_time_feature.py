@@ -28,7 +28,7 @@ def test_single_and_native_agree_across_episode_ends():
     assert np.all(obs_v[:, -1] == 1.0)
     rng = np.random.default_rng(0)
     dones_seen = 0
-    for t in range(1, 2 * STEPS + 2):
+    for _ in range(2 * STEPS + 1):
         actions = rng.uniform(-0.2, 0.2, (n, 2)).astype(np.float32)
         obs_v, _, dones, infos = venv.step(actions)
         for i, e in enumerate(singles):
