@@ -38,15 +38,24 @@ import numpy as np
 from agents.cli import UserError, check_range, run_cli
 from agents.env_factory import make_env, task_targets, wrapper_list
 from agents.loading import ModelPolicy
-from agents.metrics import final_errors, success_kwargs, summarize
+from agents.metrics import error_score, final_errors, success_kwargs, summarize
 from agents.model_files import sha256
 from agents.native_vec_env import make_sb3_vec_env
 from agents.run_layout import write_args, write_run_config
-from agents.train import build, check_args, make_parser, next_run_dir, resolve_config
+from agents.train import (
+    build,
+    check_args,
+    make_parser,
+    next_run_dir,
+    resolve_config,
+    start_from,
+)
 from softhand_env.envs.signature import env_signature
 
 #: Dict-observation key of the blind part (what the student reads).
 BLIND_KEY = "observation"
+#: Options of agents.train that DAgger has no use for (refused unless left at their default).
+NOT_APPLICABLE = ("--n-timesteps", "--vec-env", "--eval-freq", "--save-freq")
 
 
 def parse_args(argv: Sequence[str] | None = None) -> argparse.Namespace:
@@ -66,6 +75,12 @@ def parse_args(argv: Sequence[str] | None = None) -> argparse.Namespace:
     p.add_argument("--max-samples", type=int, default=2_000_000,
                    help="data set cap (oldest dropped first), 1 .. 1e8")
     args = check_args(p.parse_args(argv))
+    for flag in NOT_APPLICABLE:
+        dest = flag[2:].replace("-", "_")
+        if getattr(args, dest) != p.get_default(dest):
+            raise UserError(f"{flag} does not apply to agents.distill (the student is validated "
+                            "after every iteration on the native env; --iterations sets the "
+                            "length)")
     check_range("--iterations", args.iterations, 1, 10_000)
     check_range("--rollout-steps", args.rollout_steps, 1, 100_000)
     check_range("--beta-decay", args.beta_decay, 0.0, 1.0)
@@ -106,12 +121,12 @@ def student_mean(policy: Any, obs: Any) -> Any:
     return policy.action_net(policy.mlp_extractor.forward_actor(features))
 
 
-def validate(model: Any, env_id: str, kwargs: dict[str, Any], wrapper: Any,
-             eval_seed: int, n_eval: int) -> dict[str, float]:
-    """Success and final errors of the deterministic student on goals ``eval_seed + k``,
-    k < n_eval (one native vector env of n_eval hands; the first episode of each)."""
-    venv = make_sb3_vec_env(env_id, n_eval, eval_seed, kwargs, "native", env_wrapper=wrapper)
-    targets = task_targets(env_id)
+def validate(model: Any, venv: Any, targets: Sequence[str], eval_seed: int
+             ) -> dict[str, float]:
+    """Success and final errors of the deterministic student on goals ``eval_seed + k`` (env k
+    of the native SB3 vector env ``venv``, re-seeded here; the first episode of each)."""
+    n_eval = venv.num_envs
+    venv.seed(eval_seed)
     obs = venv.reset()
     finished: dict[int, dict[str, Any]] = {}
     while len(finished) < n_eval:
@@ -119,7 +134,6 @@ def validate(model: Any, env_id: str, kwargs: dict[str, Any], wrapper: Any,
         obs, _, dones, infos = venv.step(action)
         for i in np.flatnonzero(dones):
             finished.setdefault(int(i), infos[i])
-    venv.close()
     infos = [finished[i] for i in range(n_eval)]
     return summarize(targets, [bool(info.get("is_success", False)) for info in infos],
                      [final_errors(info, targets) for info in infos])
@@ -142,7 +156,10 @@ def dagger(model: Any, teacher: ModelPolicy, env_id: str, kwargs: dict[str, Any]
     high = torch.as_tensor(model.action_space.high)
     xs: list[np.ndarray] = []
     ys: list[np.ndarray] = []
-    eval_kwargs = {**kwargs, **success_kwargs(env_id)}
+    targets = task_targets(env_id)
+    eval_venv = make_sb3_vec_env(env_id, args.eval_episodes, args.eval_seed,
+                                 {**kwargs, **success_kwargs(env_id)}, "native",
+                                 env_wrapper=wrapper)
     best: dict[str, Any] | None = None
     best_state: dict[str, Any] | None = None
     curve: list[dict[str, float]] = []
@@ -176,19 +193,21 @@ def dagger(model: Any, teacher: ModelPolicy, env_id: str, kwargs: dict[str, Any]
                 opt.zero_grad()
                 loss.backward()
                 opt.step()
-        summary = validate(model, env_id, eval_kwargs, wrapper, args.eval_seed,
-                           args.eval_episodes)
+        summary = validate(model, eval_venv, targets, args.eval_seed)
         point = {"iteration": k, "env_steps": steps, "wall_s": round(time.time() - t0, 1),
                  "beta": beta, "loss": float(loss.detach()), "samples": n, **summary}
         curve.append(point)
         log(f"iteration {k}: beta {beta:.3f}, loss {point['loss']:.5f}, {n} samples, "
             f"validation success {summary['success_rate']:.0%} ({point['wall_s']} s)")
-        rank = (summary["success_rate"], -sum(v for key, v in summary.items()
-                                              if key.startswith("median_")))
+        rank = (summary["success_rate"], -error_score(summary, targets))
         if best is None or rank > best["rank"]:
             best = {"rank": rank, "iteration": k, "env_steps": steps, **summary}
             best_state = {key: v.clone() for key, v in policy.state_dict().items()}
+        if args.stop_success is not None and summary["success_rate"] >= args.stop_success:
+            log(f"validation success >= {args.stop_success:.0%}: distillation stops")
+            break
     venv.close()
+    eval_venv.close()
     assert best is not None and best_state is not None
     policy.load_state_dict(best_state)
     best.pop("rank")
@@ -214,6 +233,8 @@ def main(argv: Sequence[str] | None = None) -> Path:
     model, eval_env = build(config, verbose=0)
     eval_env.close()
     model.get_env().close()
+    if args.trained_agent is not None:
+        start_from(model, args.trained_agent, rec)
     run_dir = next_run_dir(Path(args.log_folder), "ppo", args.env, args.run_name)
     if run_dir.exists():
         raise UserError(f"run directory {run_dir} exists (choose another --run-name)")

@@ -179,7 +179,7 @@ def resolve_config(args: argparse.Namespace, command: str = "agents.train") -> d
                  "stop_success": args.stop_success},
         "device": args.device,
         "torch_threads": args.torch_threads,
-        "trained_agent": getattr(args, "trained_agent", None),
+        "trained_agent": None,  # the start model's provenance (start_from), if any
         "vec_env": vec_env,
         "versions": versions(),
         "command": f"python -m {command} " + shlex.join(sys.argv[1:]),

@@ -12,6 +12,7 @@ import yaml
 from agents import distill, train
 from agents.cli import UserError
 from agents.loading import ModelPolicy
+from agents.native_vec_env import make_sb3_vec_env
 
 ENV_ID = "SoftHandReorient-v0"
 WRAPPER = [{"agents.time_feature.TimeFeature": {"max_steps": 8}}]
@@ -52,11 +53,17 @@ def test_student_learns_the_teacher_and_plays_as_a_saved_blind_model(tmp_path, t
     assert "privileged_obs" not in student.env_kwargs  # a plain blind policy at play time
     curve = np.load(run / "dagger_curve.npz")
     assert list(curve["iteration"]) == [0, 1, 2]
+    # validation re-seeds its env: the same goals, the same result every time
+    from agents.metrics import success_kwargs
+
+    val = make_sb3_vec_env(ENV_ID, 4, 0, {**KWARGS, **success_kwargs(ENV_ID)}, "native",
+                           env_wrapper=WRAPPER)
+    first = distill.validate(student.model, val, ("theta",), 5000)
+    assert distill.validate(student.model, val, ("theta",), 5000) == first
+    assert first["success_rate"] == curve["success_rate"][record["best_validation"]["iteration"]]
     np.testing.assert_allclose(curve["beta"], [1.0, 0.5, 0.25])
     # the student reproduces the teacher's actions on states the teacher labels: the fit is
     # far better than the untrained student's (the imitation error the training minimised)
-    from agents.native_vec_env import make_sb3_vec_env
-
     t = ModelPolicy(teacher)
     venv = make_sb3_vec_env(ENV_ID, 4, 123, {**KWARGS, "privileged_obs": True}, "native",
                             env_wrapper=WRAPPER)
@@ -75,7 +82,7 @@ def test_student_learns_the_teacher_and_plays_as_a_saved_blind_model(tmp_path, t
     assert np.mean(errs) < 0.2 * np.mean(errs0), (np.mean(errs), np.mean(errs0))
 
 
-def test_teacher_and_student_must_match(tmp_path, teacher):
+def test_teacher_and_student_must_match(tmp_path, teacher, monkeypatch):
     args = _student_args(tmp_path, teacher)
     with pytest.raises(UserError, match="env_kwargs differ"):
         distill.main(args + ["--env-kwargs", "control_dt:0.02"])
@@ -85,7 +92,19 @@ def test_teacher_and_student_must_match(tmp_path, teacher):
         distill.main(args + ["--env-kwargs", "privileged_obs:true"])
     with pytest.raises(UserError, match="--beta-decay"):
         distill.main(args + ["--beta-decay", "1.5"])
+    for flag, value in (("--eval-freq", "100"), ("--n-timesteps", "10"), ("--vec-env", "dummy"),
+                        ("--save-freq", "0")):
+        with pytest.raises(UserError, match=f"{flag} does not apply"):
+            distill.main(args + [flag, value])
     assert not (tmp_path / "logs").exists()  # refusals leave nothing behind
     student = distill.main(args)
     with pytest.raises(UserError, match="privileged_obs: true"):  # a student is no teacher
         distill.main(_student_args(tmp_path, student))
+    # a warm start from that student, stopped by its first validation (reported as 100 %)
+    real = distill.summarize
+    monkeypatch.setattr(distill, "summarize",
+                        lambda *a, **k: {**real(*a, **k), "success_rate": 1.0})
+    again = distill.main(args + ["--trained-agent", str(student), "--stop-success", "0.9"])
+    record = ModelPolicy(again).run.record
+    assert record["trained_agent"]["path"] == str(student / f"{ENV_ID}.zip")
+    assert list(np.load(again / "dagger_curve.npz")["iteration"]) == [0]
