@@ -50,6 +50,19 @@ def _refuse_extractor_kwargs(policy: str, kwargs: dict[str, Any]) -> None:
             raise ValueError(f"{policy} sets {key} itself")
 
 
+def _set_keys(policy: Any, observation_space: spaces.Dict, actor_keys: Sequence[str] | None,
+              critic_keys: Sequence[str] | None, kwargs: dict[str, Any]) -> None:
+    """Shared start of the blind-actor policies' constructors: ``policy._keys`` (actor keys,
+    critic keys; defaults: ``ACTOR_KEYS`` present, every key) and ``policy._dict_space``, after
+    refusing extractor keywords in ``kwargs``."""
+    policy._keys = (
+        resolve_keys(observation_space, actor_keys, ACTOR_KEYS),
+        resolve_keys(observation_space, critic_keys, tuple(observation_space.spaces)),
+    )
+    policy._dict_space = observation_space
+    _refuse_extractor_kwargs(type(policy).__name__, kwargs)
+
+
 def _split_key_parameters(data: dict[str, Any],
                           keys: tuple[Sequence[str], Sequence[str]]) -> dict[str, Any]:
     """Constructor parameters saved with a blind-actor policy: the actor/critic keys instead of
@@ -139,16 +152,15 @@ class AsymmetricActorCriticPolicy(MultiInputActorCriticPolicy):
         ``share_features_extractor`` are fixed here).
     """
 
+    #: Actor keys and critic keys of the Dict observation, and that Dict space (_set_keys).
+    _keys: tuple[Sequence[str], Sequence[str]]
+    _dict_space: spaces.Dict
+
     def __init__(self, observation_space: spaces.Dict, action_space: spaces.Space,
                  lr_schedule: Any, actor_keys: Sequence[str] | None = None,
                  critic_keys: Sequence[str] | None = None, **kwargs: Any):
-        self._keys = (
-            resolve_keys(observation_space, actor_keys, ACTOR_KEYS),
-            resolve_keys(observation_space, critic_keys, tuple(observation_space.spaces)),
-        )
+        _set_keys(self, observation_space, actor_keys, critic_keys, kwargs)
         self._n_made = 0
-        self._dict_space = observation_space
-        _refuse_extractor_kwargs(type(self).__name__, kwargs)
         super().__init__(observation_space, action_space, lr_schedule,
                          share_features_extractor=False, **kwargs)
 
@@ -176,15 +188,14 @@ class BlindActorSACPolicy(SACMultiInputPolicy):
     :class:`AsymmetricActorCriticPolicy`.
     """
 
+    #: Actor keys and critic keys of the Dict observation, and that Dict space (_set_keys).
+    _keys: tuple[Sequence[str], Sequence[str]]
+    _dict_space: spaces.Dict
+
     def __init__(self, observation_space: spaces.Dict, action_space: spaces.Space,
                  lr_schedule: Any, actor_keys: Sequence[str] | None = None,
                  critic_keys: Sequence[str] | None = None, **kwargs: Any):
-        self._keys = (
-            resolve_keys(observation_space, actor_keys, ACTOR_KEYS),
-            resolve_keys(observation_space, critic_keys, tuple(observation_space.spaces)),
-        )
-        self._dict_space = observation_space
-        _refuse_extractor_kwargs(type(self).__name__, kwargs)
+        _set_keys(self, observation_space, actor_keys, critic_keys, kwargs)
         super().__init__(observation_space, action_space, lr_schedule,  # type: ignore[arg-type]
                          share_features_extractor=False, **kwargs)
 
