@@ -11,9 +11,16 @@ wrappers' features) and learns to act as the teacher would, by DAgger (Ross et a
    action with probability ``beta_k = beta_decay ** k`` (iteration k), else the student's;
 2. label every visited state with the teacher's deterministic action (from the privileged
    observation of that state) and add (blind observation, label) to the data set;
-3. fit the student's mean action to the labels (mean squared error, Adam), then validate the
-   student alone on the validation goals (``reset(seed=eval_seed + k)``, the benchmark's success
-   rule) and keep the best iteration.
+3. fit the student's mean action to the labels (mean squared error, Adam; the step size goes
+   linearly from ``--lr`` to ``--lr-final``), then validate the student alone on the
+   validation goals (``reset(seed=eval_seed + k)``, the benchmark's success rule) and keep the
+   best iteration.
+
+The student may read more than the teacher's blind observation: a longer history of frames
+(``history_len``) and the fingertips' tactile entries (``obs_mode: proprio_tactile``). The
+teacher then reads its part of each student observation (:func:`teacher_view`), so a student
+can learn to infer from the recent past or its fingertips what the teacher reads in its
+privileged observation (e.g. the randomised parameters of the episode).
 
 Nothing of the teacher is in the student's inputs or outputs: at play time the student is a
 plain blind policy. The result is saved as a run in the layout of :mod:`agents.train` (a PPO
@@ -50,6 +57,7 @@ from agents.train import (
     resolve_config,
     start_from,
 )
+from softhand_env.envs.observation import ObservationLayout
 from softhand_env.envs.signature import env_signature
 
 #: Dict-observation key of the blind part (what the student reads).
@@ -72,6 +80,13 @@ def parse_args(argv: Sequence[str] | None = None) -> argparse.Namespace:
                    help="passes over the aggregated data per iteration, 1 .. 1000")
     p.add_argument("--batch-size", type=int, default=1024, help="minibatch, 1 .. 1e6")
     p.add_argument("--lr", type=float, default=1e-3, help="Adam step size, (0, 1]")
+    p.add_argument("--lr-final", type=float, default=None,
+                   help="Adam step size at the last iteration, (0, 1]: the step size goes "
+                        "linearly from --lr to it over the iterations (default: --lr, "
+                        "constant)")
+    p.add_argument("--latency-labels", action="store_true",
+                   help="label the states of an episode with set-point latency L with the "
+                        "teacher's action L steps later, when the command takes effect")
     p.add_argument("--max-samples", type=int, default=2_000_000,
                    help="data set cap (oldest dropped first), 1 .. 1e8")
     args = check_args(p.parse_args(argv))
@@ -87,14 +102,28 @@ def parse_args(argv: Sequence[str] | None = None) -> argparse.Namespace:
     check_range("--epochs", args.epochs, 1, 1000)
     check_range("--batch-size", args.batch_size, 1, 1_000_000)
     check_range("--max-samples", args.max_samples, 1, 100_000_000)
-    if not 0.0 < args.lr <= 1.0:
-        raise UserError(f"--lr must be in (0, 1] (got {args.lr!r})")
+    if args.lr_final is None:
+        args.lr_final = args.lr
+    for flag, value in (("--lr", args.lr), ("--lr-final", args.lr_final)):
+        if not 0.0 < value <= 1.0:
+            raise UserError(f"{flag} must be in (0, 1] (got {value!r})")
     return args
 
 
-def check_pair(teacher: ModelPolicy, env_id: str, hp: dict[str, Any]) -> dict[str, Any]:
-    """The student's env keywords after checking that the teacher plays the same env with
-    the privileged observation (same task, keywords, wrappers); UserError otherwise."""
+#: Observation keywords in which the student may read more than its teacher (its observation
+#: then contains the teacher's: more frames of history, tactile entries added to each frame).
+VIEW_KEYS = ("history_len", "obs_mode")
+
+
+def check_pair(teacher: ModelPolicy, env_id: str, hp: dict[str, Any]
+               ) -> tuple[dict[str, Any], dict[str, Any]]:
+    """The student's env keywords and the teacher's :data:`VIEW_KEYS` keywords.
+
+    Checks that the teacher plays the same env with the privileged observation (same task,
+    keywords besides :data:`VIEW_KEYS`, wrappers) and that the student's observation contains
+    the teacher's (at least as many frames; tactile entries if the teacher's has them);
+    UserError otherwise.
+    """
     if teacher.env_id != env_id:
         raise UserError(f"the teacher was trained on {teacher.env_id}, not {env_id}")
     t_kwargs = dict(teacher.env_kwargs)
@@ -104,15 +133,48 @@ def check_pair(teacher: ModelPolicy, env_id: str, hp: dict[str, Any]) -> dict[st
     if s_kwargs.get("privileged_obs") or s_kwargs.get("goal_obs"):
         raise UserError("the student reads the plain blind observation: leave privileged_obs "
                         "and goal_obs out of its env_kwargs")
-    if t_kwargs != s_kwargs:
-        raise UserError(f"teacher and student env_kwargs differ (besides privileged_obs): "
-                        f"{t_kwargs} vs {s_kwargs}")
+    t_view = {key: t_kwargs.pop(key) for key in VIEW_KEYS if key in t_kwargs}
+    if t_kwargs != {k: v for k, v in s_kwargs.items() if k not in VIEW_KEYS}:
+        raise UserError(f"teacher and student env_kwargs differ (besides privileged_obs, "
+                        f"history_len and obs_mode): {t_kwargs} vs {s_kwargs}")
+    t_layout, s_layout = view_layout(t_view), view_layout(s_kwargs)
+    if s_layout.history_len < t_layout.history_len:
+        raise UserError(f"the student's history_len ({s_layout.history_len}) must be at least "
+                        f"the teacher's ({t_layout.history_len})")
+    if t_layout.tactile and not s_layout.tactile:
+        raise UserError("the teacher reads tactile entries (obs_mode proprio_tactile): so must "
+                        "the student")
     if wrapper_list(teacher.env_wrapper) != wrapper_list(hp.get("env_wrapper")):
         raise UserError("teacher and student must have the same env_wrapper")
     if hp.get("normalize") not in (None, False):
         raise UserError("the student learns on raw observations: set normalize: false in its "
                         "entry")
-    return s_kwargs
+    return s_kwargs, t_view
+
+
+def view_layout(kwargs: dict[str, Any]) -> ObservationLayout:
+    """The frame layout (goal entries left out) of env keywords ``kwargs``."""
+    return ObservationLayout(kwargs.get("obs_mode", "proprio"), kwargs.get("history_len", 1), ())
+
+
+def teacher_view(obs: dict[str, np.ndarray], teacher: ObservationLayout,
+                 student: ObservationLayout) -> dict[str, np.ndarray]:
+    """The teacher's Dict observation from the student env's.
+
+    The blind part, (B, student.history_size + rest), keeps the newest ``teacher.history_len``
+    frames (frames are newest first), of each frame its first ``teacher.frame_size`` entries
+    (the proprio entries precede the tactile ones), and everything after the frames (goal,
+    wrapper features); the other keys are shared.
+    """
+    if (teacher.history_len, teacher.frame_size) == (student.history_len, student.frame_size):
+        return obs
+    blind = obs[BLIND_KEY]
+    lead = blind.shape[:-1]
+    frames = blind[..., : student.history_size].reshape(*lead, student.history_len,
+                                                         student.frame_size)
+    kept = frames[..., : teacher.history_len, : teacher.frame_size].reshape(
+        *lead, teacher.history_size)
+    return {**obs, BLIND_KEY: np.concatenate([kept, blind[..., student.history_size:]], axis=-1)}
 
 
 def student_mean(policy: Any, obs: Any) -> Any:
@@ -139,14 +201,77 @@ def validate(model: Any, venv: Any, targets: Sequence[str], eval_seed: int
                      [final_errors(info, targets) for info in infos])
 
 
+class DelayedLabels:
+    """DAgger labels for episodes with a set-point latency (``--latency-labels``).
+
+    With a latency of L control steps the command the student issues at step t is applied from
+    step t + L on, so the action the teacher (which assumes no latency) would take *then* is
+    the one to imitate: a blind observation of step t is labelled with the teacher's action at
+    step t + L of the same episode (dropped if the episode ends first). With L = 0 this is the
+    plain DAgger label.
+
+    Parameters
+    ----------
+    n_envs : int
+        Number of environments in the rollout vector env.
+    """
+
+    def __init__(self, n_envs: int):
+        self._pending: list[tuple[int, int, int, np.ndarray]] = []  # due, env, episode, row
+        self._episode = np.zeros(n_envs, dtype=np.int64)
+        self._now = 0
+
+    def step(self, blind: np.ndarray, t_act: np.ndarray, latency: np.ndarray
+             ) -> tuple[np.ndarray, np.ndarray]:
+        """Record step t: blind observations (N, D), the teacher's actions (N, A) and each
+        episode's latency (N,) in control steps; returns the (blind, label) pairs complete at
+        this step, shapes (M, D), (M, A). Call :meth:`end_step` after stepping the env."""
+        rows, labels, keep = [], [], []
+        for due, i, episode, row in self._pending:
+            if self._episode[i] != episode:
+                continue  # the episode ended before the command took effect
+            if due == self._now:
+                rows.append(row)
+                labels.append(t_act[i])
+            else:
+                keep.append((due, i, episode, row))
+        now = np.asarray(latency) == 0
+        for j in np.flatnonzero(~now).tolist():
+            keep.append((self._now + int(latency[j]), j, int(self._episode[j]),
+                         blind[j].copy()))
+        self._pending = keep
+        x = np.concatenate([blind[now], np.asarray(rows, dtype=blind.dtype).reshape(
+            -1, blind.shape[-1])])
+        y = np.concatenate([np.asarray(t_act)[now], np.asarray(labels, dtype=np.float32)
+                            .reshape(-1, np.shape(t_act)[-1])])
+        return x, y
+
+    def end_step(self, dones: np.ndarray) -> None:
+        """Advance one control step; ``dones`` (N,) marks the episodes that ended in it."""
+        self._episode[np.asarray(dones, dtype=bool)] += 1
+        self._now += 1
+
+
+def lr_at(k: int, iterations: int, lr: float, lr_final: float) -> float:
+    """Adam step size at iteration ``k`` of ``iterations``: linear from ``lr`` (k = 0) to
+    ``lr_final`` (k = iterations - 1)."""
+    frac = k / (iterations - 1) if iterations > 1 else 0.0
+    return lr + (lr_final - lr) * frac
+
+
 def dagger(model: Any, teacher: ModelPolicy, env_id: str, kwargs: dict[str, Any], wrapper: Any,
-           n_envs: int, seed: int, args: argparse.Namespace, log: Any = print
+           n_envs: int, seed: int, args: argparse.Namespace,
+           teacher_kwargs: dict[str, Any] | None = None, log: Any = print
            ) -> tuple[dict[str, Any], list[dict[str, float]]]:
     """Train ``model``'s actor by DAgger (module doc); returns the best validation summary
-    (its weights are loaded back into ``model``) and the per-iteration curve."""
+    (its weights are loaded back into ``model``) and the per-iteration curve.
+    ``teacher_kwargs``: the teacher's :data:`VIEW_KEYS` keywords (its observation is contained
+    in the student's, ``kwargs``; the student's when None)."""
     import torch
 
     rng = np.random.default_rng(seed)
+    s_layout = view_layout(kwargs)
+    t_layout = s_layout if teacher_kwargs is None else view_layout(teacher_kwargs)
     venv = make_sb3_vec_env(env_id, n_envs, seed, {**kwargs, "privileged_obs": True}, "native",
                             env_wrapper=wrapper)
     policy = model.policy
@@ -164,18 +289,26 @@ def dagger(model: Any, teacher: ModelPolicy, env_id: str, kwargs: dict[str, Any]
     best_state: dict[str, Any] | None = None
     curve: list[dict[str, float]] = []
     obs: Any = venv.reset()
+    delayed = bool(getattr(args, "latency_labels", False))
+    labels, no_latency = DelayedLabels(n_envs), np.zeros(n_envs, dtype=np.int64)
     steps = 0
     t0 = time.time()
     for k in range(args.iterations):
         beta = args.beta_decay ** k
+        for group in opt.param_groups:
+            group["lr"] = lr_at(k, args.iterations, args.lr, args.lr_final)
         for _ in range(args.rollout_steps):
-            t_act, _ = teacher.model.predict(teacher.normalize(obs), deterministic=True)
-            blind = obs[BLIND_KEY]
-            xs.append(blind.astype(np.float32))
-            ys.append(np.asarray(t_act, dtype=np.float32))
+            t_obs = teacher_view(obs, t_layout, s_layout)
+            t_act, _ = teacher.model.predict(teacher.normalize(t_obs), deterministic=True)
+            blind = obs[BLIND_KEY].astype(np.float32)
+            latency = venv.get_attr("latencies")[0] if delayed else no_latency
+            x, y = labels.step(blind, np.asarray(t_act, dtype=np.float32), latency)
+            xs.append(x)
+            ys.append(y)
             s_act, _ = model.predict(blind, deterministic=True)
             use_teacher = rng.random(n_envs) < beta
-            obs, _, _, _ = venv.step(np.where(use_teacher[:, None], t_act, s_act))
+            obs, _, dones, _ = venv.step(np.where(use_teacher[:, None], t_act, s_act))
+            labels.end_step(dones)
             steps += n_envs
         total = sum(len(x) for x in xs)
         while total - len(xs[0]) >= args.max_samples:
@@ -222,12 +355,14 @@ def main(argv: Sequence[str] | None = None) -> Path:
     if args.algo != "ppo":
         raise UserError("the student is saved as a PPO policy: use --algo ppo")
     teacher = ModelPolicy(args.teacher)
-    kwargs = check_pair(teacher, args.env, hp)
+    kwargs, teacher_kwargs = check_pair(teacher, args.env, hp)
     wrapper = hp.get("env_wrapper")
     probe = make_env(args.env, kwargs, wrapper)
     rec["env_signature"] = env_signature(probe)
     probe.close()
-    teacher_env = make_env(args.env, {**kwargs, "privileged_obs": True}, wrapper)
+    plain = {k: v for k, v in kwargs.items() if k not in VIEW_KEYS}
+    teacher_env = make_env(args.env, {**plain, **teacher_kwargs, "privileged_obs": True},
+                           wrapper)  # the spaces of the teacher's view
     teacher.check_env(teacher_env)
     teacher_env.close()
     model, eval_env = build(config, verbose=0)
@@ -247,7 +382,7 @@ def main(argv: Sequence[str] | None = None) -> Path:
     print(f"run directory: {run_dir}")
     t0 = time.time()
     best, curve = dagger(model, teacher, args.env, kwargs, wrapper, hp["n_envs"], args.seed,
-                         args)
+                         args, teacher_kwargs)
     wall = round(time.time() - t0, 1)
     model.save(run_dir / f"{args.env}.zip")  # the best iteration's weights (dagger())
     arrays: dict[str, Any] = {key: np.array([p[key] for p in curve]) for key in curve[0]}
@@ -259,7 +394,8 @@ def main(argv: Sequence[str] | None = None) -> Path:
                     "total_timesteps": teacher.run.record.get("total_timesteps")},
         "dagger": {key: getattr(args, key) for key in ("iterations", "rollout_steps",
                                                        "beta_decay", "epochs", "batch_size",
-                                                       "lr", "max_samples")},
+                                                       "lr", "lr_final", "max_samples",
+                                                       "latency_labels")},
         "wall_time_s": wall, "total_timesteps": int(curve[-1]["env_steps"]),
         "best_validation": {key: (float(v) if key != "iteration" else int(v))
                             for key, v in best.items()},

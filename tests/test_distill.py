@@ -3,7 +3,9 @@
 from __future__ import annotations
 
 from pathlib import Path
+from types import SimpleNamespace
 
+import gymnasium as gym
 import numpy as np
 import pytest
 import torch
@@ -92,6 +94,8 @@ def test_teacher_and_student_must_match(tmp_path, teacher, monkeypatch):
         distill.main(args + ["--env-kwargs", "privileged_obs:true"])
     with pytest.raises(UserError, match="--beta-decay"):
         distill.main(args + ["--beta-decay", "1.5"])
+    with pytest.raises(UserError, match="--lr-final must be in"):
+        distill.main(args + ["--lr-final", "0"])
     for flag, value in (("--eval-freq", "100"), ("--n-timesteps", "10"), ("--vec-env", "dummy"),
                         ("--save-freq", "0")):
         with pytest.raises(UserError, match=f"{flag} does not apply"):
@@ -108,3 +112,90 @@ def test_teacher_and_student_must_match(tmp_path, teacher, monkeypatch):
     record = ModelPolicy(again).run.record
     assert record["trained_agent"]["path"] == str(student / f"{ENV_ID}.zip")
     assert list(np.load(again / "dagger_curve.npz")["iteration"]) == [0]
+    assert record["dagger"]["latency_labels"] is False
+    delayed = distill.main(args + ["--latency-labels"])  # no latency here: plain labels
+    assert ModelPolicy(delayed).run.record["dagger"]["latency_labels"] is True
+
+
+def test_student_with_a_longer_history_feeds_the_teacher_its_newest_frames(tmp_path, teacher):
+    student_kwargs = {**KWARGS, "history_len": 3}
+    run = distill.main(_student_args(tmp_path, teacher, env_kwargs=student_kwargs))
+    student = ModelPolicy(run)
+    assert student.env_kwargs["history_len"] == 3
+    assert student.model.observation_space.shape[0] == 3 * 8 + 1 + 1  # frames, goal, time
+    # the teacher's view of a 3-frame observation is exactly the 1-frame observation of the
+    # same state: reset both envs with the same seed and step them with the same actions
+    long = make_sb3_vec_env(ENV_ID, 2, 7, {**student_kwargs, "privileged_obs": True}, "native",
+                            env_wrapper=WRAPPER)
+    short = make_sb3_vec_env(ENV_ID, 2, 7, {**KWARGS, "privileged_obs": True}, "native",
+                             env_wrapper=WRAPPER)
+    o_long, o_short = long.reset(), short.reset()
+    for _ in range(3):
+        view = distill.teacher_view(o_long, distill.view_layout(KWARGS),
+                                    distill.view_layout(student_kwargs))
+        for key in o_short:
+            np.testing.assert_array_equal(view[key], o_short[key])
+        # the older frames are the earlier steps' newest ones (frames are newest first)
+        previous = o_long["observation"][:, :8].copy()
+        action = np.full((2, 2), 0.3, np.float32)
+        o_long, o_short = long.step(action)[0], short.step(action)[0]
+        np.testing.assert_array_equal(o_long["observation"][:, 8:16], previous)
+    # a teacher with a longer history than the student's cannot be fed
+    longer = SimpleNamespace(env_id=ENV_ID, env_wrapper=WRAPPER,
+                             env_kwargs={**KWARGS, "privileged_obs": True, "history_len": 4})
+    hp = {"env_kwargs": student_kwargs, "env_wrapper": WRAPPER, "normalize": False}
+    with pytest.raises(UserError, match=r"history_len \(3\) must be at least the teacher's \(4\)"):
+        distill.check_pair(longer, ENV_ID, hp)
+    assert distill.check_pair(longer, ENV_ID, {**hp, "env_kwargs": {**KWARGS, "history_len": 4}}
+                              ) == ({**KWARGS, "history_len": 4}, {"history_len": 4})
+    tactile = SimpleNamespace(env_id=ENV_ID, env_wrapper=WRAPPER, env_kwargs={
+        **KWARGS, "privileged_obs": True, "obs_mode": "proprio_tactile"})
+    with pytest.raises(UserError, match="so must the student"):
+        distill.check_pair(tactile, ENV_ID, hp)
+    other = SimpleNamespace(env_id=ENV_ID, env_wrapper=WRAPPER, env_kwargs={
+        **KWARGS, "privileged_obs": True, "max_delta_deg": 2.0})
+    with pytest.raises(UserError, match="env_kwargs differ"):
+        distill.check_pair(other, ENV_ID, hp)
+
+
+def test_tactile_student_feeds_the_teacher_the_proprio_entries_of_its_frames():
+    tactile = {**KWARGS, "obs_mode": "proprio_tactile", "history_len": 2}
+    both = [make_sb3_vec_env(ENV_ID, 2, 3, {**kw, "privileged_obs": True}, "native",
+                             env_wrapper=WRAPPER) for kw in (tactile, KWARGS)]
+    t_layout, s_layout = distill.view_layout(KWARGS), distill.view_layout(tactile)
+    assert (s_layout.frame_size, s_layout.history_len) == (12, 2)
+    o_tactile, o_plain = both[0].reset(), both[1].reset()
+    for _ in range(3):
+        view = distill.teacher_view(o_tactile, t_layout, s_layout)
+        np.testing.assert_array_equal(view["observation"], o_plain["observation"])
+        action = np.full((2, 2), -0.4, np.float32)
+        o_tactile, o_plain = both[0].step(action)[0], both[1].step(action)[0]
+
+
+def test_step_size_goes_linearly_from_lr_to_lr_final():
+    steps = [distill.lr_at(k, 5, 1e-3, 1e-4) for k in range(5)]
+    np.testing.assert_allclose(steps, [1e-3, 7.75e-4, 5.5e-4, 3.25e-4, 1e-4])
+    assert distill.lr_at(0, 1, 1e-3, 1e-4) == 1e-3  # a single iteration uses --lr
+    args = distill.parse_args(["--env", ENV_ID, "--teacher", "t"])
+    assert args.lr_final == args.lr  # constant by default
+
+
+def test_delayed_labels_pair_a_state_with_the_teacher_action_when_its_command_acts():
+    labels = distill.DelayedLabels(3)
+    latency = np.array([0, 1, 2])  # env i: commands take effect i steps later
+    got = []
+    for t in range(5):
+        blind = np.full((3, 1), t, np.float32)  # the step, as the observation
+        t_act = (10 * t + np.arange(3, dtype=np.float32))[:, None]  # step and env, as actions
+        x, y = labels.step(blind, t_act, latency)
+        got.append(sorted(zip(x[:, 0].tolist(), y[:, 0].tolist(), strict=True)))
+        labels.end_step(np.array([False, False, t == 2]))  # env 2's episode ends at step 2
+    # env 0: the same step; env 1: the next step; env 2: two steps later, and nothing of its
+    # episode's steps 1 and 2 (it ended first); its next episode's step 3 is due at step 5
+    assert got == [[(0, 0)], [(0, 11), (1, 10)], [(0, 22), (1, 21), (2, 20)],
+                   [(2, 31), (3, 30)], [(3, 41), (4, 40)]]
+    # the latencies the labels use are the vector env's draws
+    env = gym.make_vec("SoftHandPoseRandom-v0", num_envs=16,
+                       vectorization_mode="vector_entry_point")
+    env.reset(seed=list(range(16)))
+    assert env.latencies.dtype == np.int64 and set(env.latencies) == {0, 1}

@@ -246,6 +246,11 @@ class SoftHandVectorEnv(VectorEnv):
         """Current goals (SI), shape (N, goal_dim)."""
         return self._batch.goal.copy()
 
+    @property
+    def latencies(self) -> np.ndarray:
+        """Each episode's set-point latency (control steps; ``setpoint_latency``), int64 (N,)."""
+        return self._batch.latency.copy()
+
     def render(self) -> tuple[np.ndarray, ...] | None:
         """One RGB frame per environment (``render_mode="rgb_array"``), else None."""
         if self.render_mode is None:
