@@ -17,7 +17,8 @@ wrappers' features) and learns to act as the teacher would, by DAgger (Ross et a
    best iteration.
 
 The student may read more than the teacher's blind observation: a longer history of frames
-(``history_len``) and the fingertips' tactile entries (``obs_mode: proprio_tactile``). The
+(``history_len``), the fingertips' tactile entries (``obs_mode: proprio_tactile``) and the
+features of further wrappers after the teacher's (e.g. :mod:`agents.action_history`). The
 teacher then reads its part of each student observation (:func:`teacher_view`), so a student
 can learn to infer from the recent past or its fingertips what the teacher reads in its
 privileged observation (e.g. the randomised parameters of the episode).
@@ -144,8 +145,10 @@ def check_pair(teacher: ModelPolicy, env_id: str, hp: dict[str, Any]
     if t_layout.tactile and not s_layout.tactile:
         raise UserError("the teacher reads tactile entries (obs_mode proprio_tactile): so must "
                         "the student")
-    if wrapper_list(teacher.env_wrapper) != wrapper_list(hp.get("env_wrapper")):
-        raise UserError("teacher and student must have the same env_wrapper")
+    t_wrappers = wrapper_list(teacher.env_wrapper)
+    if wrapper_list(hp.get("env_wrapper"))[: len(t_wrappers)] != t_wrappers:
+        raise UserError("the student's env_wrapper must start with the teacher's (further "
+                        "wrappers append features the teacher does not read)")
     if hp.get("normalize") not in (None, False):
         raise UserError("the student learns on raw observations: set normalize: false in its "
                         "entry")
@@ -158,23 +161,31 @@ def view_layout(kwargs: dict[str, Any]) -> ObservationLayout:
 
 
 def teacher_view(obs: dict[str, np.ndarray], teacher: ObservationLayout,
-                 student: ObservationLayout) -> dict[str, np.ndarray]:
+                 student: ObservationLayout, teacher_size: int | None = None
+                 ) -> dict[str, np.ndarray]:
     """The teacher's Dict observation from the student env's.
 
     The blind part, (B, student.history_size + rest), keeps the newest ``teacher.history_len``
     frames (frames are newest first), of each frame its first ``teacher.frame_size`` entries
-    (the proprio entries precede the tactile ones), and everything after the frames (goal,
-    wrapper features); the other keys are shared.
+    (the proprio entries precede the tactile ones), and what follows the frames (goal, wrapper
+    features) up to the teacher's blind size ``teacher_size`` (all of it when None: the
+    features of wrappers the student has beyond the teacher's come last); the other keys are
+    shared.
     """
-    if (teacher.history_len, teacher.frame_size) == (student.history_len, student.frame_size):
-        return obs
     blind = obs[BLIND_KEY]
+    same_frames = (teacher.history_len, teacher.frame_size) == (student.history_len,
+                                                                 student.frame_size)
+    if same_frames and teacher_size in (None, blind.shape[-1]):
+        return obs
     lead = blind.shape[:-1]
     frames = blind[..., : student.history_size].reshape(*lead, student.history_len,
                                                          student.frame_size)
     kept = frames[..., : teacher.history_len, : teacher.frame_size].reshape(
         *lead, teacher.history_size)
-    return {**obs, BLIND_KEY: np.concatenate([kept, blind[..., student.history_size:]], axis=-1)}
+    rest = blind[..., student.history_size:]
+    if teacher_size is not None:
+        rest = rest[..., : teacher_size - teacher.history_size]
+    return {**obs, BLIND_KEY: np.concatenate([kept, rest], axis=-1)}
 
 
 def student_mean(policy: Any, obs: Any) -> Any:
@@ -272,6 +283,7 @@ def dagger(model: Any, teacher: ModelPolicy, env_id: str, kwargs: dict[str, Any]
     rng = np.random.default_rng(seed)
     s_layout = view_layout(kwargs)
     t_layout = s_layout if teacher_kwargs is None else view_layout(teacher_kwargs)
+    t_size = int(teacher.model.observation_space[BLIND_KEY].shape[0])
     venv = make_sb3_vec_env(env_id, n_envs, seed, {**kwargs, "privileged_obs": True}, "native",
                             env_wrapper=wrapper)
     policy = model.policy
@@ -298,7 +310,7 @@ def dagger(model: Any, teacher: ModelPolicy, env_id: str, kwargs: dict[str, Any]
         for group in opt.param_groups:
             group["lr"] = lr_at(k, args.iterations, args.lr, args.lr_final)
         for _ in range(args.rollout_steps):
-            t_obs = teacher_view(obs, t_layout, s_layout)
+            t_obs = teacher_view(obs, t_layout, s_layout, t_size)
             t_act, _ = teacher.model.predict(teacher.normalize(t_obs), deterministic=True)
             blind = obs[BLIND_KEY].astype(np.float32)
             latency = venv.get_attr("latencies")[0] if delayed else no_latency
@@ -362,7 +374,7 @@ def main(argv: Sequence[str] | None = None) -> Path:
     probe.close()
     plain = {k: v for k, v in kwargs.items() if k not in VIEW_KEYS}
     teacher_env = make_env(args.env, {**plain, **teacher_kwargs, "privileged_obs": True},
-                           wrapper)  # the spaces of the teacher's view
+                           teacher.env_wrapper)  # the spaces of the teacher's view
     teacher.check_env(teacher_env)
     teacher_env.close()
     model, eval_env = build(config, verbose=0)

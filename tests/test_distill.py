@@ -199,3 +199,16 @@ def test_delayed_labels_pair_a_state_with_the_teacher_action_when_its_command_ac
                        vectorization_mode="vector_entry_point")
     env.reset(seed=list(range(16)))
     assert env.latencies.dtype == np.int64 and set(env.latencies) == {0, 1}
+
+
+def test_student_with_further_wrappers_feeds_the_teacher_without_their_features(tmp_path,
+                                                                                 teacher):
+    history = {"agents.action_history.ActionHistory": {"n": 2}}
+    run = distill.main(_student_args(tmp_path, teacher, env_wrapper=WRAPPER + [history]))
+    assert ModelPolicy(run).model.observation_space.shape == (8 + 1 + 1 + 4,)
+    obs = {"observation": np.arange(14.0)[None], "privileged": np.zeros((1, 3))}
+    view = distill.teacher_view(obs, distill.view_layout(KWARGS), distill.view_layout(KWARGS),
+                                10)
+    np.testing.assert_array_equal(view["observation"], np.arange(10.0)[None])
+    with pytest.raises(UserError, match="must start with the teacher's"):
+        distill.main(_student_args(tmp_path, teacher, env_wrapper=[history]))
