@@ -24,8 +24,8 @@ import numpy as np
 from gymnasium import spaces
 from stable_baselines3.common.vec_env import VecEnv, VecEnvWrapper
 
-#: Dict-observation key that receives the feature.
-KEY = "observation"
+from agents.obs_features import append_entries, space_with_entries
+
 #: Largest number of actions kept.
 MAX_ACTIONS = 100
 
@@ -38,34 +38,17 @@ def _check(n: Any, action_space: gym.Space) -> tuple[int, int]:
     return int(n), int(action_space.shape[0])
 
 
-def _box_with(space: spaces.Box, size: int) -> spaces.Box:
-    low = np.append(space.low.astype(np.float32), np.full(size, -1.0, np.float32))
-    high = np.append(space.high.astype(np.float32), np.full(size, 1.0, np.float32))
-    return spaces.Box(low, high, dtype=np.float32)
-
-
 def space_with_history(space: gym.Space, size: int) -> gym.Space:
     """The observation space with ``size`` entries in [-1, 1] appended (1-D Box, or Dict with
     ``observation``)."""
-    if isinstance(space, spaces.Dict):
-        if KEY not in space.spaces:
-            raise ValueError(f"Dict observation has no {KEY!r} entry")
-        return spaces.Dict({k: (_box_with(v, size) if k == KEY else v)  # type: ignore[arg-type]
-                            for k, v in space.spaces.items()})
-    if isinstance(space, spaces.Box) and len(space.shape) == 1:
-        return _box_with(space, size)
-    raise ValueError(f"the action history needs a 1-D Box or a Dict observation (got {space})")
+    return space_with_entries(space, np.full(size, -1.0), np.full(size, 1.0),
+                              "the action history")
 
 
 def append_history(obs: Any, history: np.ndarray) -> Any:
     """``obs`` (one (D,) or a batch (N, D), or a Dict of them) with ``history`` ((n, A) or
     (N, n, A), newest first) appended, flattened."""
-    flat = history.reshape(*history.shape[:-2], -1).astype(np.float32)
-    if isinstance(obs, dict):
-        out = dict(obs)
-        out[KEY] = np.concatenate([obs[KEY], flat], axis=-1).astype(np.float32)
-        return out
-    return np.concatenate([obs, flat], axis=-1).astype(np.float32)
+    return append_entries(obs, history.reshape(*history.shape[:-2], -1).astype(np.float32))
 
 
 def _push(history: np.ndarray, action: Any) -> None:

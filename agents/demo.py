@@ -32,10 +32,10 @@ def learned_label(model: str | Path) -> str:
     """Table label of a model, from its run config (algorithm; residual on the loop plan, or a
     blind student distilled from a privileged teacher)."""
     run = resolve_model(model)
-    wrappers = str(run.hyperparams.get("env_wrapper") or "")
-    residual = ", residual on the loop plan" if "ResidualWrapper" in wrappers else ""
     if run.record.get("trainer") == "dagger":
         return "learned (privileged PPO teacher -> blind student, no plan)"
+    wrappers = str(run.hyperparams.get("env_wrapper") or "")
+    residual = ", residual on the loop plan" if "ResidualWrapper" in wrappers else ""
     return f"learned ({run.algo.upper()}{residual})"
 
 

@@ -271,18 +271,17 @@ def lr_at(k: int, iterations: int, lr: float, lr_final: float) -> float:
 
 
 def dagger(model: Any, teacher: ModelPolicy, env_id: str, kwargs: dict[str, Any], wrapper: Any,
-           n_envs: int, seed: int, args: argparse.Namespace,
-           teacher_kwargs: dict[str, Any] | None = None, log: Any = print
-           ) -> tuple[dict[str, Any], list[dict[str, float]]]:
+           n_envs: int, seed: int, args: argparse.Namespace, teacher_kwargs: dict[str, Any],
+           log: Any = print) -> tuple[dict[str, Any], list[dict[str, float]]]:
     """Train ``model``'s actor by DAgger (module doc); returns the best validation summary
     (its weights are loaded back into ``model``) and the per-iteration curve.
     ``teacher_kwargs``: the teacher's :data:`VIEW_KEYS` keywords (its observation is contained
-    in the student's, ``kwargs``; the student's when None)."""
+    in the student's, ``kwargs``; :func:`check_pair`)."""
     import torch
 
     rng = np.random.default_rng(seed)
     s_layout = view_layout(kwargs)
-    t_layout = s_layout if teacher_kwargs is None else view_layout(teacher_kwargs)
+    t_layout = view_layout(teacher_kwargs)
     t_size = int(teacher.model.observation_space[BLIND_KEY].shape[0])
     venv = make_sb3_vec_env(env_id, n_envs, seed, {**kwargs, "privileged_obs": True}, "native",
                             env_wrapper=wrapper)
@@ -301,7 +300,7 @@ def dagger(model: Any, teacher: ModelPolicy, env_id: str, kwargs: dict[str, Any]
     best_state: dict[str, Any] | None = None
     curve: list[dict[str, float]] = []
     obs: Any = venv.reset()
-    delayed = bool(getattr(args, "latency_labels", False))
+    delayed = args.latency_labels
     labels, no_latency = DelayedLabels(n_envs), np.zeros(n_envs, dtype=np.int64)
     steps = 0
     t0 = time.time()

@@ -126,6 +126,19 @@ class ObsNormalizer:
         if self.clip_obs <= 0 or self.epsilon <= 0:
             raise ValueError(f"{path}: clip_obs and epsilon must be > 0")
 
+    def load_into(self, vecnormalize: Any) -> None:
+        """Copy these moments (and counts, where stored) into the running statistics of an SB3
+        ``VecNormalize`` (the inverse of :func:`save_stats` for the moments; its observation
+        keys must be these)."""
+        rms = vecnormalize.obs_rms
+        if self.keys is None:
+            rms.mean, rms.var = self.mean.copy(), self.var.copy()
+            rms.count = self.count or rms.count
+            return
+        for key, (mean, var) in self.moments.items():
+            rms[key].mean, rms[key].var = mean.copy(), var.copy()
+            rms[key].count = self.counts.get(key) or rms[key].count
+
     def _one(self, obs: np.ndarray, mean: np.ndarray, var: np.ndarray) -> np.ndarray:
         z = (obs - mean) / np.sqrt(var + self.epsilon)
         return np.clip(z, -self.clip_obs, self.clip_obs).astype(np.float32)

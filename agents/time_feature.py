@@ -22,11 +22,10 @@ from typing import Any
 
 import gymnasium as gym
 import numpy as np
-from gymnasium import spaces
 from stable_baselines3.common.vec_env import VecEnv, VecEnvWrapper
 
-#: Dict-observation key that receives the feature.
-KEY = "observation"
+from agents.obs_features import append_entries, space_with_entries
+
 #: Largest episode length the feature accepts (control steps).
 MAX_STEPS = 1_000_000
 
@@ -38,33 +37,16 @@ def _check_steps(max_steps: Any) -> int:
     return int(max_steps)
 
 
-def _box_with_feature(space: spaces.Box) -> spaces.Box:
-    low = np.append(space.low.astype(np.float32), np.float32(0.0))
-    high = np.append(space.high.astype(np.float32), np.float32(1.0))
-    return spaces.Box(low, high, dtype=np.float32)
-
-
 def space_with_feature(space: gym.Space) -> gym.Space:
     """The observation space with the feature appended (1-D Box, or Dict with ``observation``)."""
-    if isinstance(space, spaces.Dict):
-        if KEY not in space.spaces:
-            raise ValueError(f"Dict observation has no {KEY!r} entry")
-        return spaces.Dict({k: (_box_with_feature(v) if k == KEY else v)  # type: ignore[arg-type]
-                            for k, v in space.spaces.items()})
-    if isinstance(space, spaces.Box) and len(space.shape) == 1:
-        return _box_with_feature(space)
-    raise ValueError(f"the time feature needs a 1-D Box or a Dict observation (got {space})")
+    return space_with_entries(space, [0.0], [1.0], "the time feature")
 
 
 def append_feature(obs: Any, t: np.ndarray | int, max_steps: int) -> Any:
     """``obs`` (one (D,) or a batch (N, D), or a Dict of them) with ``1 - t / max_steps``
     appended; ``t`` is an int or an (N,) int array of steps taken."""
     feat = (1.0 - np.minimum(t, max_steps) / max_steps).astype(np.float32)
-    if isinstance(obs, dict):
-        out = dict(obs)
-        out[KEY] = np.concatenate([obs[KEY], feat[..., None]], axis=-1).astype(np.float32)
-        return out
-    return np.concatenate([obs, feat[..., None]], axis=-1).astype(np.float32)
+    return append_entries(obs, feat[..., None])
 
 
 class VecTimeFeature(VecEnvWrapper):

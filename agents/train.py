@@ -323,14 +323,7 @@ def start_from(model: Any, spec: str, record: dict[str, Any]) -> None:
         raise UserError(f"--trained-agent {spec}: observation normalisation differs from the "
                         "run's (normalize)")
     if vecnorm is not None:
-        norm = src.normalizer
-        if norm.keys is None:
-            vecnorm.obs_rms.mean, vecnorm.obs_rms.var = norm.mean.copy(), norm.var.copy()
-            vecnorm.obs_rms.count = norm.count or vecnorm.obs_rms.count
-        else:
-            for key, (mean, var) in norm.moments.items():
-                vecnorm.obs_rms[key].mean, vecnorm.obs_rms[key].var = mean.copy(), var.copy()
-                vecnorm.obs_rms[key].count = norm.counts.get(key) or vecnorm.obs_rms[key].count
+        src.normalizer.load_into(vecnorm)
     record["trained_agent"] = {
         "path": str(src.path), "sha256": sha256(src.path), "env_id": src.env_id,
         "total_timesteps": src.run.record.get("total_timesteps"),
