@@ -19,18 +19,20 @@ ROOT = Path(__file__).resolve().parent.parent
 SHIPPED_ZIPS = shipped_models()
 
 #: Shipped model (by name) -> lowest success rate accepted on the first 10 test goals (seeds
-#: 10000-10009). Measured on these 10: 10/10 for every model (on all 100 test goals:
-#: Translate 100 %, Reorient 100 %, Pose 99 %, Pose residual 94 %, ReorientRandom 100 %;
-#: results.yml of each run). Evaluation is deterministic, so the margin only covers platform
-#: round-off flipping a goal that ends near the tolerance (the largest final errors on these
-#: goals: Pose 0.74, Pose residual 0.87 of the tolerance): one goal for the single-coordinate
-#: tasks, two for Pose.
+#: 10000-10009). Measured on these 10: 10/10 for every model but PoseRandom, 7/10 (on all
+#: 100 test goals: Translate 100 %, Reorient 100 %, Pose 99 %, Pose residual 94 %,
+#: ReorientRandom 100 %, PoseRandom 86 %; results.yml of each run). Evaluation is
+#: deterministic, so the margin only covers platform round-off flipping a goal that ends near
+#: the tolerance (the largest final errors on the goals reached: Pose 0.74, Pose residual
+#: 0.87, PoseRandom 0.81 of the tolerance): one goal for the single-coordinate tasks, two for
+#: Pose.
 SHIPPED = {
     "SoftHandTranslate-v0": 0.9,
     "SoftHandReorient-v0": 0.9,
     "SoftHandPose-v0": 0.8,
     "SoftHandPose-v0_residual": 0.8,
     "SoftHandReorientRandom-v0": 0.9,
+    "SoftHandPoseRandom-v0": 0.5,
 }
 
 
