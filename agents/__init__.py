@@ -1,0 +1,33 @@
+"""Agents for the soft-hand environments: scripted policies, SB3 training and evaluation.
+
+Commands (``python -m agents.<name>``, the top level holds only these and three aliases):
+
+* ``train`` (an SB3 run from a hyper-parameter entry), ``distill`` (DAgger: a blind student
+  from a privileged teacher), ``evaluate`` (a model or scripted policy on seeded goals),
+  ``demo`` (the paper's figures and the headline table), ``pose_figures`` (reachable set and
+  manoeuvre of Pose policies), ``learning_curves`` (validation curves of runs),
+  ``bench_train`` (PPO speed, dummy vs native vector env).
+
+Sub-packages (libraries; no command imports another command's internals):
+
+* ``common``: CLI errors and entry point, the benchmark's success rule, env construction and
+  the ``env_wrapper`` allow-list;
+* ``runs``: the on-disk run format (layout and file names, reading, writing, typed run
+  config and record, SB3 zips without unpickling, observation statistics, RL Zoo's YAML
+  dialect, hyper-parameter files);
+* ``sb3``: the native vector env as an SB3 ``VecEnv``, asymmetric / blind policies, the goal
+  curriculum and the training library of ``train`` and ``distill``;
+* ``wrappers``: time feature, action history, the residual on the loop plan;
+* ``scripted``: the paper's motions, the handling process, the model-based baseline, the
+  loop plan;
+* ``play``: the policy of a ``--model`` / ``--policy`` choice and the episode loops of
+  ``evaluate`` and ``pose_figures``;
+* ``plots``: figures of evaluated episodes and of Pose policies.
+
+Data: ``configs/`` (hyper-parameter files, RL Zoo's dialect, keyed by env id) and ``models/``
+(the shipped models as RL Zoo runs), installed with the package.
+
+``agents.time_feature``, ``agents.action_history`` and ``agents.residual`` are the published
+dotted paths of the wrappers that run configs name (``env_wrapper``); they import the classes
+from ``wrappers`` (and ``scripted.loop_plan``).
+"""

@@ -6,7 +6,7 @@ end-to-end frames (env steps) per second of ``model.learn`` (rollouts, VecNormal
 * ``dummy``: the env's entry of ``configs/agents/ppo.yml`` as it is (SB3 ``DummyVecEnv`` of
   monitored single envs, its n_envs, n_steps, batch size and epochs), torch on one thread;
 * ``native``: the same entry (network, learning rate, gamma, normalisation, env keywords)
-  through :class:`~agents.native_vec_env.NativeVecEnv` with the rollout/update shape tuned for
+  through :class:`~agents.sb3.native_vec_env.NativeVecEnv` with the rollout/update shape tuned for
   it: many environments stepped in one batched call, fewer epochs over larger minibatches
   (``--native-*`` options; defaults below).
 
@@ -72,8 +72,8 @@ def run_ppo(env_id: str, hp: dict[str, Any], vec_env: str, steps: int, seed: int
     from stable_baselines3 import PPO
     from stable_baselines3.common.vec_env import VecNormalize
 
-    from agents.hyperparams import algo_kwargs, normalize_kwargs
-    from agents.native_vec_env import make_sb3_vec_env
+    from agents.runs.hyperparams import algo_kwargs, normalize_kwargs
+    from agents.sb3.native_vec_env import make_sb3_vec_env
 
     torch.set_num_threads(torch_threads)
     numba.set_num_threads(numba_threads or numba.config.NUMBA_NUM_THREADS)  # type: ignore[attr-defined]
@@ -123,7 +123,7 @@ def main(argv: Sequence[str] | None = None) -> float:
     """Run both trainings, print the table and the ratio; returns the ratio."""
     args = parse_args(argv)
     import softhand_env  # noqa: F401  (registers the environments)
-    from agents.hyperparams import load_hyperparams
+    from agents.runs.hyperparams import load_hyperparams
 
     hp = load_hyperparams("ppo", args.env)
     if hp.get("env_wrapper"):

@@ -21,9 +21,9 @@ import time
 from collections.abc import Sequence
 from pathlib import Path
 
-from agents.cli import UserError, run_cli
-from agents.loading import resolve_model, shipped_models
-from agents.metrics import ERROR_KEYS
+from agents.common.cli import UserError, run_cli
+from agents.common.metrics import ERROR_KEYS
+from agents.runs.loading import resolve_model, shipped_models
 
 GOAL_ENVS = ("SoftHandReorient-v0", "SoftHandTranslate-v0", "SoftHandPose-v0")
 

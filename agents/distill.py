@@ -18,7 +18,7 @@ wrappers' features) and learns to act as the teacher would, by DAgger (Ross et a
 
 The student may read more than the teacher's blind observation: a longer history of frames
 (``history_len``), the fingertips' tactile entries (``obs_mode: proprio_tactile``) and the
-features of further wrappers after the teacher's (e.g. :mod:`agents.action_history`). The
+features of further wrappers after the teacher's (e.g. :mod:`agents.wrappers.action_history`). The
 teacher then reads its part of each student observation (:func:`teacher_view`), so a student
 can learn to infer from the recent past or its fingertips what the teacher reads in its
 privileged observation (e.g. the randomised parameters of the episode).
@@ -30,29 +30,32 @@ checksum in the record), so ``agents.evaluate --model <run>`` plays it and ``age
 can fine-tune it. Usage::
 
     python -m agents.distill --env SoftHandPose-v0 --teacher logs/ppo/SoftHandPose-v0_1 \\
-        --conf-file softhand_env/configs/agents/ppo_native.yml --log-folder logs
+        --conf-file agents/configs/ppo_native.yml --log-folder logs
 """
 
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import time
 from collections.abc import Sequence
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from agents.cli import UserError, check_range, run_cli
-from agents.env_factory import make_env, task_targets, wrapper_list
-from agents.loading import ModelPolicy
-from agents.metrics import error_score, final_errors, success_kwargs, summarize
-from agents.model_files import sha256
-from agents.native_vec_env import make_sb3_vec_env
-from agents.run_layout import write_args, write_run_config
-from agents.train import (
+from agents.common.cli import UserError, check_range, run_cli
+from agents.common.env_factory import make_env, task_targets, wrapper_list
+from agents.common.metrics import error_score, final_errors, success_kwargs, summarize
+from agents.runs.loading import ModelPolicy
+from agents.runs.model_files import sha256
+from agents.runs.records import DistillOutcome, EvalSettings
+from agents.runs.writing import write_args, write_run_config
+from agents.sb3.native_vec_env import make_sb3_vec_env
+from agents.sb3.training import (
+    TrainSettings,
     build,
-    check_args,
     make_parser,
     next_run_dir,
     resolve_config,
@@ -67,7 +70,70 @@ BLIND_KEY = "observation"
 NOT_APPLICABLE = ("--n-timesteps", "--vec-env", "--eval-freq", "--save-freq")
 
 
-def parse_args(argv: Sequence[str] | None = None) -> argparse.Namespace:
+@dataclass
+class DaggerSchedule:
+    """The DAgger schedule (module doc): ``iterations``; ``rollout_steps`` control steps per env
+    and iteration; teacher-action probability ``beta_decay ** k`` at iteration k; ``epochs``
+    passes over the data set per iteration in minibatches of ``batch_size``; Adam step size
+    linear from ``lr`` to ``lr_final``; at most ``max_samples`` (blind observation, label)
+    pairs, oldest dropped first; ``latency_labels``: label with the teacher's action when the
+    command takes effect (:class:`DelayedLabels`)."""
+
+    iterations: int = 40
+    rollout_steps: int = 50
+    beta_decay: float = 0.5
+    epochs: int = 2
+    batch_size: int = 1024
+    lr: float = 1e-3
+    lr_final: float = 1e-3
+    max_samples: int = 2_000_000
+    latency_labels: bool = False
+
+    def __post_init__(self) -> None:
+        """Range checks (UserError on a bad value)."""
+        check_range("--iterations", self.iterations, 1, 10_000)
+        check_range("--rollout-steps", self.rollout_steps, 1, 100_000)
+        check_range("--beta-decay", self.beta_decay, 0.0, 1.0)
+        check_range("--epochs", self.epochs, 1, 1000)
+        check_range("--batch-size", self.batch_size, 1, 1_000_000)
+        check_range("--max-samples", self.max_samples, 1, 100_000_000)
+        for flag, value in (("--lr", self.lr), ("--lr-final", self.lr_final)):
+            if not 0.0 < value <= 1.0:
+                raise UserError(f"{flag} must be in (0, 1] (got {value!r})")
+
+
+@dataclass
+class DistillSettings(TrainSettings):
+    """The distillation command line: the training settings (the student's run), the teacher's
+    run directory or zip and the DAgger schedule (``--lr-final`` defaults to ``--lr``)."""
+
+    teacher: str = ""
+    iterations: int = 40
+    rollout_steps: int = 50
+    beta_decay: float = 0.5
+    epochs: int = 2
+    batch_size: int = 1024
+    lr: float = 1e-3
+    lr_final: float | None = None
+    max_samples: int = 2_000_000
+    latency_labels: bool = False
+
+    def __post_init__(self) -> None:
+        """Range checks of both parts (UserError on a bad value)."""
+        super().__post_init__()
+        if self.lr_final is None:
+            self.lr_final = self.lr
+        self.schedule()  # checks the schedule's ranges
+
+    def schedule(self) -> DaggerSchedule:
+        """The DAgger schedule of the settings."""
+        assert self.lr_final is not None  # set in __post_init__
+        return DaggerSchedule(self.iterations, self.rollout_steps, self.beta_decay,
+                              self.epochs, self.batch_size, self.lr, self.lr_final,
+                              self.max_samples, self.latency_labels)
+
+
+def make_distill_parser() -> argparse.ArgumentParser:
     """Arguments of ``agents.train`` plus the teacher and the DAgger schedule."""
     p = make_parser("python -m agents.distill", __doc__.split("\n\n")[0])
     p.add_argument("--teacher", required=True,
@@ -90,25 +156,21 @@ def parse_args(argv: Sequence[str] | None = None) -> argparse.Namespace:
                         "teacher's action L steps later, when the command takes effect")
     p.add_argument("--max-samples", type=int, default=2_000_000,
                    help="data set cap (oldest dropped first), 1 .. 1e8")
-    args = check_args(p.parse_args(argv))
+    return p
+
+
+def parse_args(argv: Sequence[str] | None = None) -> DistillSettings:
+    """The distillation settings of a command line, range-checked."""
+    p = make_distill_parser()
+    ns = p.parse_args(argv)
+    TrainSettings.from_namespace(ns)  # the training part's checks come first
     for flag in NOT_APPLICABLE:
         dest = flag[2:].replace("-", "_")
-        if getattr(args, dest) != p.get_default(dest):
+        if getattr(ns, dest) != p.get_default(dest):
             raise UserError(f"{flag} does not apply to agents.distill (the student is validated "
                             "after every iteration on the native env; --iterations sets the "
                             "length)")
-    check_range("--iterations", args.iterations, 1, 10_000)
-    check_range("--rollout-steps", args.rollout_steps, 1, 100_000)
-    check_range("--beta-decay", args.beta_decay, 0.0, 1.0)
-    check_range("--epochs", args.epochs, 1, 1000)
-    check_range("--batch-size", args.batch_size, 1, 1_000_000)
-    check_range("--max-samples", args.max_samples, 1, 100_000_000)
-    if args.lr_final is None:
-        args.lr_final = args.lr
-    for flag, value in (("--lr", args.lr), ("--lr-final", args.lr_final)):
-        if not 0.0 < value <= 1.0:
-            raise UserError(f"{flag} must be in (0, 1] (got {value!r})")
-    return args
+    return DistillSettings.from_namespace(ns)
 
 
 #: Observation keywords in which the student may read more than its teacher (its observation
@@ -271,12 +333,15 @@ def lr_at(k: int, iterations: int, lr: float, lr_final: float) -> float:
 
 
 def dagger(model: Any, teacher: ModelPolicy, env_id: str, kwargs: dict[str, Any], wrapper: Any,
-           n_envs: int, seed: int, args: argparse.Namespace, teacher_kwargs: dict[str, Any],
-           log: Any = print) -> tuple[dict[str, Any], list[dict[str, float]]]:
-    """Train ``model``'s actor by DAgger (module doc); returns the best validation summary
-    (its weights are loaded back into ``model``) and the per-iteration curve.
-    ``teacher_kwargs``: the teacher's :data:`VIEW_KEYS` keywords (its observation is contained
-    in the student's, ``kwargs``; :func:`check_pair`)."""
+           n_envs: int, seed: int, schedule: DaggerSchedule, validation: EvalSettings,
+           teacher_kwargs: dict[str, Any], log: Any = print
+           ) -> tuple[dict[str, Any], list[dict[str, float]]]:
+    """Train ``model``'s actor by DAgger (module doc, ``schedule``); returns the best validation
+    summary (its weights are loaded back into ``model``) and the per-iteration curve.
+    ``validation``: the validation goals (``n_eval_episodes`` from ``eval_seed``) and the
+    success rate that stops early (``stop_success``; ``eval_freq`` is not used: every
+    iteration is validated). ``teacher_kwargs``: the teacher's :data:`VIEW_KEYS` keywords (its
+    observation is contained in the student's, ``kwargs``; :func:`check_pair`)."""
     import torch
 
     rng = np.random.default_rng(seed)
@@ -287,28 +352,28 @@ def dagger(model: Any, teacher: ModelPolicy, env_id: str, kwargs: dict[str, Any]
                             env_wrapper=wrapper)
     policy = model.policy
     params = [*policy.mlp_extractor.policy_net.parameters(), *policy.action_net.parameters()]
-    opt = torch.optim.Adam(params, lr=args.lr)
+    opt = torch.optim.Adam(params, lr=schedule.lr)
     low = torch.as_tensor(model.action_space.low)
     high = torch.as_tensor(model.action_space.high)
     xs: list[np.ndarray] = []
     ys: list[np.ndarray] = []
     targets = task_targets(env_id)
-    eval_venv = make_sb3_vec_env(env_id, args.eval_episodes, args.eval_seed,
+    eval_venv = make_sb3_vec_env(env_id, validation.n_eval_episodes, validation.eval_seed,
                                  {**kwargs, **success_kwargs(env_id)}, "native",
                                  env_wrapper=wrapper)
     best: dict[str, Any] | None = None
     best_state: dict[str, Any] | None = None
     curve: list[dict[str, float]] = []
     obs: Any = venv.reset()
-    delayed = args.latency_labels
+    delayed = schedule.latency_labels
     labels, no_latency = DelayedLabels(n_envs), np.zeros(n_envs, dtype=np.int64)
     steps = 0
     t0 = time.time()
-    for k in range(args.iterations):
-        beta = args.beta_decay ** k
+    for k in range(schedule.iterations):
+        beta = schedule.beta_decay ** k
         for group in opt.param_groups:
-            group["lr"] = lr_at(k, args.iterations, args.lr, args.lr_final)
-        for _ in range(args.rollout_steps):
+            group["lr"] = lr_at(k, schedule.iterations, schedule.lr, schedule.lr_final)
+        for _ in range(schedule.rollout_steps):
             t_obs = teacher_view(obs, t_layout, s_layout, t_size)
             t_act, _ = teacher.model.predict(teacher.normalize(t_obs), deterministic=True)
             blind = obs[BLIND_KEY].astype(np.float32)
@@ -322,22 +387,22 @@ def dagger(model: Any, teacher: ModelPolicy, env_id: str, kwargs: dict[str, Any]
             labels.end_step(dones)
             steps += n_envs
         total = sum(len(x) for x in xs)
-        while total - len(xs[0]) >= args.max_samples:
+        while total - len(xs[0]) >= schedule.max_samples:
             total -= len(xs.pop(0))
             ys.pop(0)
         x_all = torch.as_tensor(np.concatenate(xs))
         y_all = torch.clamp(torch.as_tensor(np.concatenate(ys)), low, high)
         n = len(x_all)
         loss = torch.zeros(())
-        for _ in range(args.epochs):
+        for _ in range(schedule.epochs):
             perm = torch.randperm(n)
-            for start in range(0, n, args.batch_size):
-                idx = perm[start:start + args.batch_size]
+            for start in range(0, n, schedule.batch_size):
+                idx = perm[start:start + schedule.batch_size]
                 loss = ((student_mean(policy, x_all[idx]) - y_all[idx]) ** 2).mean()
                 opt.zero_grad()
                 loss.backward()
                 opt.step()
-        summary = validate(model, eval_venv, targets, args.eval_seed)
+        summary = validate(model, eval_venv, targets, validation.eval_seed)
         point = {"iteration": k, "env_steps": steps, "wall_s": round(time.time() - t0, 1),
                  "beta": beta, "loss": float(loss.detach()), "samples": n, **summary}
         curve.append(point)
@@ -347,8 +412,9 @@ def dagger(model: Any, teacher: ModelPolicy, env_id: str, kwargs: dict[str, Any]
         if best is None or rank > best["rank"]:
             best = {"rank": rank, "iteration": k, "env_steps": steps, **summary}
             best_state = {key: v.clone() for key, v in policy.state_dict().items()}
-        if args.stop_success is not None and summary["success_rate"] >= args.stop_success:
-            log(f"validation success >= {args.stop_success:.0%}: distillation stops")
+        stop = validation.stop_success
+        if stop is not None and summary["success_rate"] >= stop:
+            log(f"validation success >= {stop:.0%}: distillation stops")
             break
     venv.close()
     eval_venv.close()
@@ -362,14 +428,14 @@ def main(argv: Sequence[str] | None = None) -> Path:
     """CLI entry point; returns the run directory of the student."""
     args = parse_args(argv)
     config = resolve_config(args, command="agents.distill")
-    hp, rec = config["hyperparams"], config["record"]
+    hp, rec = config.hyperparams, config.record
     if args.algo != "ppo":
         raise UserError("the student is saved as a PPO policy: use --algo ppo")
     teacher = ModelPolicy(args.teacher)
     kwargs, teacher_kwargs = check_pair(teacher, args.env, hp)
-    wrapper = hp.get("env_wrapper")
+    wrapper = config.env_wrapper
     probe = make_env(args.env, kwargs, wrapper)
-    rec["env_signature"] = env_signature(probe)
+    rec.env_signature = env_signature(probe)
     probe.close()
     plain = {k: v for k, v in kwargs.items() if k not in VIEW_KEYS}
     teacher_env = make_env(args.env, {**plain, **teacher_kwargs, "privileged_obs": True},
@@ -386,31 +452,28 @@ def main(argv: Sequence[str] | None = None) -> Path:
         raise UserError(f"run directory {run_dir} exists (choose another --run-name)")
     (run_dir / args.env).mkdir(parents=True)
     write_args(run_dir, args.env, {
-        "algo": "ppo", "seed": args.seed, "conf_file": rec["conf_file"], "n_timesteps": 0,
+        "algo": "ppo", "seed": args.seed, "conf_file": rec.conf_file, "n_timesteps": 0,
         "device": args.device, "num_threads": args.torch_threads, "vec_env": "native",
         "eval_freq": 0, "eval_episodes": args.eval_episodes, "save_freq": 0,
         "log_folder": str(args.log_folder)})
     print(f"run directory: {run_dir}")
     t0 = time.time()
-    best, curve = dagger(model, teacher, args.env, kwargs, wrapper, hp["n_envs"], args.seed,
-                         args, teacher_kwargs)
+    schedule = args.schedule()
+    best, curve = dagger(model, teacher, args.env, kwargs, wrapper, config.n_envs, args.seed,
+                         schedule, rec.eval, teacher_kwargs)
     wall = round(time.time() - t0, 1)
     model.save(run_dir / f"{args.env}.zip")  # the best iteration's weights (dagger())
     arrays: dict[str, Any] = {key: np.array([p[key] for p in curve]) for key in curve[0]}
     np.savez(run_dir / "dagger_curve.npz", **arrays)
-    rec.update({
-        "trainer": "dagger",
-        "teacher": {"path": str(teacher.path), "sha256": sha256(teacher.path),
-                    "wall_time_s": teacher.run.record.get("wall_time_s"),
-                    "total_timesteps": teacher.run.record.get("total_timesteps")},
-        "dagger": {key: getattr(args, key) for key in ("iterations", "rollout_steps",
-                                                       "beta_decay", "epochs", "batch_size",
-                                                       "lr", "lr_final", "max_samples",
-                                                       "latency_labels")},
-        "wall_time_s": wall, "total_timesteps": int(curve[-1]["env_steps"]),
-        "best_validation": {key: (float(v) if key != "iteration" else int(v))
-                            for key, v in best.items()},
-    })
+    rec.outcome = DistillOutcome(
+        teacher={"path": str(teacher.path), "sha256": sha256(teacher.path),
+                 "wall_time_s": teacher.run.record.get("wall_time_s"),
+                 "total_timesteps": teacher.run.record.get("total_timesteps")},
+        dagger=dataclasses.asdict(schedule),
+        wall_time_s=wall, total_timesteps=int(curve[-1]["env_steps"]),
+        best_validation={key: (float(v) if key != "iteration" else int(v))
+                         for key, v in best.items()},
+    )
     write_run_config(run_dir, args.env, hp, rec)
     print(f"saved {run_dir / (args.env + '.zip')}: validation success "
           f"{best['success_rate']:.0%} (iteration {best['iteration']}, {wall} s)")

@@ -29,30 +29,72 @@ rendered from ``render_mode="rgb_array"`` frames with the time, goal and object 
 
 from __future__ import annotations
 
-import argparse
+import dataclasses
 from collections.abc import Sequence
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 import yaml
 
-from agents.cli import SEED_MAX, ArgumentParser, UserError, check_range, run_cli
-from agents.env_factory import goal_seeds, make_env, task_targets
-from agents.loading import ModelPolicy
-from agents.metrics import ERROR_KEYS, final_errors, success_kwargs, summarize
-from softhand_env.envs.signature import SIGNATURE_FIELDS
-from softhand_env.figures.episodes import (
+from agents.common.cli import SEED_MAX, ArgumentParser, UserError, check_range, run_cli
+from agents.common.env_factory import goal_seeds, make_env, task_targets
+from agents.common.metrics import ERROR_KEYS
+from agents.play.choice import SCRIPTED, PolicyChoice, build
+from agents.play.rollout import EvaluationResults, evaluate, run_episode
+from agents.plots.episodes import (
     choose_episode,
     evaluation_title,
     gif_frames,
     plot_episodes,
 )
+from agents.runs.loading import ModelPolicy
+from softhand_env.envs.signature import SIGNATURE_FIELDS
 
-SCRIPTED = ("paper", "handling", "model-based", "loop-plan")
+
+@dataclass
+class EvaluateSettings:
+    """The evaluation command line (``python -m agents.evaluate --help``), range-checked:
+    ``model`` or ``policy`` (exactly one), the env id, the grasp angle of ``handling`` (deg),
+    ``n_episodes`` goals from ``seed`` (or the goals of the JSON file ``goals``), sampling
+    (``stochastic``), the output directory and what goes in it, the env-signature fields not
+    to check, and how a model is loaded (``trust_model``, torch device and threads)."""
+
+    model: str | None = None
+    policy: str | None = None
+    env: str | None = None
+    grasp_deg: float = 6.0
+    n_episodes: int = 100
+    seed: int = 10000
+    goals: str | None = None
+    stochastic: bool = False
+    out: str | None = None
+    force: bool = False
+    no_plots: bool = False
+    gif_episode: int | None = None
+    gif_size: int = 240
+    ignore_signature: list[str] = dataclasses.field(default_factory=list)
+    trust_model: bool = False
+    device: str = "cpu"
+    torch_threads: int = 1
+
+    def __post_init__(self) -> None:
+        """Range checks (UserError on a bad value)."""
+        check_range("--n-episodes", self.n_episodes, 1, 100_000)
+        check_range("--seed", self.seed, 0, SEED_MAX - self.n_episodes)
+        check_range("--torch-threads", self.torch_threads, 1, 256)
+        check_range("--gif-size", self.gif_size, 16, 2048)
+        check_range("--grasp-deg", self.grasp_deg, 0.0, 30.0)
+
+    def choice(self) -> PolicyChoice:
+        """The policy to play."""
+        return PolicyChoice(model=self.model, policy=self.policy, env=self.env,
+                            grasp_deg=self.grasp_deg, device=self.device,
+                            trust_model=self.trust_model)
 
 
-def parse_args(argv: Sequence[str] | None = None) -> argparse.Namespace:
+def parse_args(argv: Sequence[str] | None = None) -> EvaluateSettings:
     """Command-line arguments (see ``python -m agents.evaluate --help``)."""
     p = ArgumentParser(prog="python -m agents.evaluate", description=__doc__.split("\n\n")[0])
     who = p.add_mutually_exclusive_group(required=True)
@@ -89,129 +131,9 @@ def parse_args(argv: Sequence[str] | None = None) -> argparse.Namespace:
                         "be rebuilt, vecnormalize.pkl without .npz): runs code from the files")
     p.add_argument("--device", default="cpu", choices=("cpu", "cuda", "auto"))
     p.add_argument("--torch-threads", type=int, default=1, help="1 .. 256")
-    args = p.parse_args(argv)
-    check_range("--n-episodes", args.n_episodes, 1, 100_000)
-    check_range("--seed", args.seed, 0, SEED_MAX - args.n_episodes)
-    check_range("--torch-threads", args.torch_threads, 1, 256)
-    check_range("--gif-size", args.gif_size, 16, 2048)
-    check_range("--grasp-deg", args.grasp_deg, 0.0, 30.0)
-    return args
-
-
-# ---------------------------------------------------------------------------------- setup
-def build(args: argparse.Namespace) -> tuple[Any, str, dict[str, Any], Any, str]:
-    """Policy, env id, ``gym.make`` keywords, env wrappers and a short name for the output."""
-    if args.model is not None:
-        policy: Any = ModelPolicy(args.model, device=args.device, trust_model=args.trust_model)
-        if args.env is not None and args.env != policy.env_id:
-            raise UserError(f"the model was trained on {policy.env_id}, not {args.env}")
-        env_id, kwargs, wrapper = policy.env_id, dict(policy.env_kwargs), policy.env_wrapper
-        name = f"{policy.algo}"
-    else:
-        from agents.scripted import HandlingProcessPolicy, ModelBasedPolicy, PaperSequencePolicy
-
-        goal_policy = args.policy in ("model-based", "loop-plan")
-        chosen = args.env or (None if goal_policy else "SoftHand-v0")
-        if chosen is None:
-            raise UserError(f"--policy {args.policy} needs --env (a goal task)")
-        env_id = chosen
-        if args.policy == "paper":
-            policy = PaperSequencePolicy()
-        elif args.policy == "handling":
-            policy = HandlingProcessPolicy(args.grasp_deg)
-        else:
-            from agents.residual import LoopPlanPolicy
-
-            if args.policy == "loop-plan" and task_targets(env_id) != ("x", "theta"):
-                raise UserError(f"--policy loop-plan needs SoftHandPose-v0, not {env_id}")
-            if not task_targets(env_id):
-                raise UserError(f"--policy {args.policy} needs a goal task, not {env_id}")
-            cls = ModelBasedPolicy if args.policy == "model-based" else LoopPlanPolicy
-            probe = make_env(env_id, cls.env_kwargs)
-            policy = cls.from_env(probe)
-            probe.close()
-        kwargs, wrapper = dict(policy.env_kwargs), None
-        if policy.episode_steps is not None:
-            kwargs["max_episode_steps"] = policy.episode_steps
-        name = args.policy
-    kwargs.update(success_kwargs(env_id))  # benchmark tolerance, whatever the training
-    return policy, env_id, kwargs, wrapper, name
-
-
-# -------------------------------------------------------------------------------- rollouts
-def run_episode(
-    env: Any, policy: Any, seed: int, deterministic: bool = True, frames: list | None = None,
-    goal: Sequence[float] | None = None,
-) -> dict[str, Any]:
-    """Play one episode from ``reset(seed=seed)`` (with ``options={"goal": goal}`` if given,
-    SI units, shape (goal_dim,)); returns its record (trajectory included;
-    ``max_friction_ratio``: the largest step friction ratio |J_t| / J_n of either finger over
-    the steps that did not end the episode with a failure other than slip, i.e. the friction
-    coefficient the episode needed while the grasp held).
-
-    ``frames``: if a list, ``env.render()`` frames are appended (``render_mode="rgb_array"``).
-    """
-    options = None if goal is None else {"goal": np.asarray(goal, dtype=np.float64)}
-    try:
-        obs, info = env.reset(seed=seed, options=options)
-    except ValueError as exc:
-        raise UserError(f"goal {list(goal or ())}: {exc}") from None
-    poses, setpoints = [info["object_pose"]], [info["setpoint"]]
-    if frames is not None:
-        frames.append(env.render())
-    state, start = None, np.array([True])
-    ret, steps, friction = 0.0, 0, 0.0
-    while True:
-        action, state = policy.predict(obs, state, start, deterministic)
-        start = np.array([False])
-        obs, reward, terminated, truncated, info = env.step(action)
-        ret += float(reward)
-        steps += 1
-        if info.get("termination_reason") in (None, "slip"):  # the grasp held (or slipped)
-            friction = max(friction, float(np.max(info["friction_ratio"])))
-        poses.append(info["object_pose"])
-        setpoints.append(info["setpoint"])
-        if frames is not None:
-            frames.append(env.render())
-        if terminated or truncated:
-            break
-    return {
-        "seed": int(seed),
-        "success": bool(info["is_success"]),
-        "goal": [float(g) for g in info.get("goal", ())],
-        "final_pose": [float(v) for v in info["object_pose"]],
-        "return": ret,
-        "length": steps,
-        "termination_reason": info.get("termination_reason"),
-        "max_friction_ratio": friction,
-        "pose": np.array(poses),
-        "setpoint": np.array(setpoints),
-    }
-
-
-def evaluate(
-    env: Any, policy: Any, seeds: Sequence[int], targets: Sequence[str], deterministic: bool = True,
-    goals: Sequence[Sequence[float]] | None = None,
-) -> tuple[dict[str, float], list[dict[str, Any]]]:
-    """Play every goal of ``seeds`` (or episode k: ``seeds[k]`` with ``goals[k]``); returns the
-    summary and the episode records."""
-    episodes = []
-    for k, seed in enumerate(seeds):
-        ep = run_episode(env, policy, seed, deterministic, goal=None if goals is None else goals[k])
-        info = {"object_pose": ep["final_pose"], "goal": ep["goal"]}
-        ep["errors"] = final_errors(info, targets)
-        episodes.append(ep)
-    summary = summarize(
-        targets,
-        [ep["success"] for ep in episodes],
-        [ep["errors"] for ep in episodes],
-        [ep["return"] for ep in episodes],
-        [ep["length"] for ep in episodes],
-    )
-    summary["n_failures"] = sum(ep["termination_reason"] not in (None, "success")
-                                for ep in episodes)
-    summary["max_friction_ratio"] = max(ep["max_friction_ratio"] for ep in episodes)
-    return summary, episodes
+    ns = p.parse_args(argv)
+    return EvaluateSettings(**{f.name: getattr(ns, f.name)
+                               for f in dataclasses.fields(EvaluateSettings)})
 
 
 # --------------------------------------------------------------------------------- output
@@ -299,7 +221,7 @@ def check_goal_range(env: Any, goals: Sequence[Sequence[float]]) -> None:
                                 f"(|goal| <= {[float(x) for x in ranges]}, SI units)")
 
 
-def output_dir(args: argparse.Namespace, env_id: str, policy: Any) -> Path:
+def output_dir(args: EvaluateSettings, env_id: str, policy: Any) -> Path:
     """``--out``, or ``logs/eval/<env id>/<run dir>_<model>`` for a model (a distinct
     directory per model file), ``logs/eval/<env id>/<policy>`` for a scripted policy."""
     if args.out is not None:
@@ -308,7 +230,8 @@ def output_dir(args: argparse.Namespace, env_id: str, policy: Any) -> Path:
         run = policy.run
         name = f"{run.algo}_{run.run_dir.name}_{run.zip_path.stem}"
     else:
-        name = args.policy if args.policy != "handling" else f"handling_{args.grasp_deg:g}deg"
+        name = (str(args.policy) if args.policy != "handling"
+                else f"handling_{args.grasp_deg:g}deg")
     return Path("logs") / "eval" / env_id / name
 
 
@@ -331,14 +254,15 @@ def main(argv: Sequence[str] | None = None) -> dict[str, float]:
     import torch
 
     torch.set_num_threads(args.torch_threads)
-    policy, env_id, kwargs, wrapper, name = build(args)
+    policy, env_id, kwargs, wrapper, name = build(args.choice())
     targets = task_targets(env_id)
     goals = None
+    n_episodes = args.n_episodes
     if args.goals is not None:
         goals = read_goals(args.goals, targets)
-        args.n_episodes = len(goals)
-        check_range("--seed", args.seed, 0, SEED_MAX - args.n_episodes)
-    if args.gif_episode is not None and not 0 <= args.gif_episode < args.n_episodes:
+        n_episodes = len(goals)
+        check_range("--seed", args.seed, 0, SEED_MAX - n_episodes)
+    if args.gif_episode is not None and not 0 <= args.gif_episode < n_episodes:
         raise UserError("--gif-episode must index one of the episodes")
     out = output_dir(args, env_id, policy)
     check_output(out, args.force)
@@ -347,27 +271,19 @@ def main(argv: Sequence[str] | None = None) -> dict[str, float]:
         check_goal_range(env, goals)
     if isinstance(policy, ModelPolicy):
         policy.check_env(env, args.ignore_signature)
-    seeds = goal_seeds(args.seed, args.n_episodes)
+    seeds = goal_seeds(args.seed, n_episodes)
     summary, episodes = evaluate(env, policy, seeds, targets, not args.stochastic, goals)
     if goals is None:
-        title = evaluation_title(env_id, name, args.n_episodes, args.seed, targets)
+        title = evaluation_title(env_id, name, n_episodes, args.seed, targets)
     else:
-        title = f"{env_id}, {name} policy, {args.n_episodes} goals from {args.goals}"
+        title = f"{env_id}, {name} policy, {n_episodes} goals from {args.goals}"
     print(format_table(title, summary, targets))
     out.mkdir(parents=True, exist_ok=True)
-    record = {
-        "env_id": env_id,
-        "policy": args.model or args.policy,
-        "env_kwargs": kwargs,
-        "env_wrapper": wrapper,
-        "seed": args.seed,
-        "goals_file": args.goals,
-        "summary": summary,
-        "episodes": [{k: v for k, v in ep.items() if k not in ("pose", "setpoint")}
-                     for ep in episodes],
-    }
+    results = EvaluationResults(env_id=env_id, policy=str(args.model or args.policy),
+                                env_kwargs=kwargs, env_wrapper=wrapper, seed=args.seed,
+                                goals_file=args.goals, summary=summary, episodes=episodes)
     with (out / "results.yml").open("w") as fh:
-        yaml.safe_dump(record, fh, sort_keys=False)
+        yaml.safe_dump(results.to_yaml(), fh, sort_keys=False)
     if not args.no_plots:
         shown = choose_episode(episodes) if args.gif_episode is None else args.gif_episode
         plot_episodes(out / "trajectories.png", episodes, targets,

@@ -20,7 +20,7 @@ from pathlib import Path
 
 import numpy as np
 
-from agents.cli import ArgumentParser, UserError, run_cli
+from agents.common.cli import ArgumentParser, UserError, run_cli
 
 
 def read_curve(run: Path) -> tuple[str, np.ndarray, np.ndarray]:

@@ -7,7 +7,7 @@
 
 Each ``--model`` (a run directory or registered id, as ``agents.evaluate --model`` takes it) or
 ``--policy`` (a scripted goal policy) is one policy, in the order given; each is played
-deterministically in its own env (``agents.evaluate.build``: the run's ``gym.make`` keywords
+deterministically in its own env (:func:`agents.play.choice.build`: the run's ``gym.make`` keywords
 and wrappers, the benchmark's 1 mm / 1 deg tolerance), with the goal range widened to
 ``--span-mm`` / ``--span-deg`` so that goals outside the task's +-10 mm / +-10 deg can be set.
 
@@ -36,12 +36,13 @@ from typing import Any
 
 import numpy as np
 
-from agents.cli import SEED_MAX, ArgumentParser, UserError, check_range, run_cli
-from agents.env_factory import make_env
-from agents.evaluate import build, run_episode
-from agents.loading import ModelPolicy
-from agents.metrics import SUCCESS_TOLERANCE
-from agents.pose_plots import OUTCOMES, Manoeuvre, in_box, plot_manoeuvre, plot_reachable, rate
+from agents.common.cli import SEED_MAX, ArgumentParser, UserError, check_range, run_cli
+from agents.common.env_factory import make_env
+from agents.common.metrics import SUCCESS_TOLERANCE
+from agents.play.choice import PolicyChoice, build
+from agents.play.rollout import run_episode
+from agents.plots.pose import OUTCOMES, Manoeuvre, in_box, plot_manoeuvre, plot_reachable, rate
+from agents.runs.loading import ModelPolicy
 from softhand_env.envs.task_configs import load_task_config
 
 ENV_ID = "SoftHandPose-v0"
@@ -120,12 +121,13 @@ class Contender:
 
 def make_contender(kind: str, value: str, span_mm: float, span_deg: float,
                    trust_model: bool = False) -> Contender:
-    """Build a ``--model``/``--policy`` entry through ``agents.evaluate.build`` and its env
-    with ``goal_x_range_mm=span_mm, goal_theta_range_deg=span_deg`` added."""
-    ns = argparse.Namespace(model=value if kind == "model" else None,
-                            policy=value if kind == "policy" else None, env=ENV_ID,
-                            grasp_deg=6.0, device="cpu", trust_model=trust_model)
-    policy, env_id, kwargs, wrapper, name = build(ns)
+    """Build a ``--model``/``--policy`` entry through :func:`agents.play.choice.build` (as
+    ``agents.evaluate`` does) and its env with ``goal_x_range_mm=span_mm,
+    goal_theta_range_deg=span_deg`` added."""
+    choice = PolicyChoice(model=value if kind == "model" else None,
+                          policy=value if kind == "policy" else None, env=ENV_ID,
+                          grasp_deg=6.0, device="cpu", trust_model=trust_model)
+    policy, env_id, kwargs, wrapper, name = build(choice)
     kwargs = {**kwargs, "goal_x_range_mm": span_mm, "goal_theta_range_deg": span_deg}
     env = make_env(env_id, kwargs, wrapper)
     if isinstance(policy, ModelPolicy):
@@ -135,7 +137,7 @@ def make_contender(kind: str, value: str, span_mm: float, span_deg: float,
 
 
 def outcome_of(episode: dict[str, Any]) -> str:
-    """Outcome of an ``agents.evaluate.run_episode`` record (see the module doc)."""
+    """Outcome of an :func:`agents.play.rollout.run_episode` record (see the module doc)."""
     if episode["success"]:
         return "success"
     reason = episode["termination_reason"]
@@ -177,7 +179,7 @@ def save_npz(path: Path, contenders: Sequence[Contender], goal_x_mm: np.ndarray,
     ``labels``, ``specs`` (P,) str; ``control_dt`` (P,) s; ``seconds`` (P,) wall-clock of
     each grid; ``goal_x_mm`` (G_x,), ``goal_theta_deg`` (G_theta,); ``goal`` (G_theta, G_x, 2)
     the goals as passed to ``reset`` (m, rad); ``seed`` (G_theta, G_x); ``outcome`` (P,
-    G_theta, G_x) str (:data:`~agents.pose_plots.OUTCOMES`); ``success`` (P, G_theta, G_x)
+    G_theta, G_x) str (:data:`~agents.plots.pose.OUTCOMES`); ``success`` (P, G_theta, G_x)
     bool; ``final_pose`` (P, G_theta, G_x, 3) object x, y, theta at the end (m, m, rad);
     ``length`` (P, G_theta, G_x) control steps; ``task_box`` (2,) the task's goal range (mm,
     deg); ``tolerance`` (2,) the success tolerance (mm, deg).

@@ -7,8 +7,8 @@ import numpy as np
 import pytest
 
 import softhand_env  # noqa: F401
-from agents.action_history import ActionHistory, VecActionHistory
-from agents.native_vec_env import make_sb3_vec_env
+from agents.sb3.native_vec_env import make_sb3_vec_env
+from agents.wrappers.action_history import ActionHistory, VecActionHistory
 
 ENV_ID = "SoftHandReorient-v0"
 STEPS = 5

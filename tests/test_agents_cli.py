@@ -8,7 +8,8 @@ import json
 import pytest
 import yaml
 
-from agents import cli, evaluate, train
+from agents import evaluate, train
+from agents.common import cli
 
 
 def _exit_2(capsys, main, argv, fragment):

@@ -11,9 +11,11 @@ import numpy as np
 import pytest
 import yaml
 
-from agents import cli, env_factory, evaluate, loading, metrics
-from agents.loading import shipped_models
-from agents.zoo_dialect import zoo_yaml_dump, zoo_yaml_load
+from agents import evaluate
+from agents.common import cli, env_factory, metrics
+from agents.runs import loading
+from agents.runs.loading import shipped_models
+from agents.runs.zoo_dialect import zoo_yaml_dump, zoo_yaml_load
 
 ROOT = Path(__file__).resolve().parent.parent
 SHIPPED_ZIPS = shipped_models()

@@ -13,10 +13,12 @@ import zipfile
 import numpy as np
 import pytest
 
-from agents import cli, evaluate, loading
-from agents.model_files import sha256
-from agents.normalization import ObsNormalizer
-from agents.zoo_dialect import parse_expression, zoo_yaml_dump, zoo_yaml_load
+from agents import evaluate
+from agents.common import cli
+from agents.runs import loading
+from agents.runs.model_files import sha256
+from agents.runs.normalization import ObsNormalizer
+from agents.runs.zoo_dialect import parse_expression, zoo_yaml_dump, zoo_yaml_load
 
 SHIPPED = loading.shipped_models()
 ENV = "SoftHandTranslate-v0"

@@ -1,13 +1,10 @@
-"""The native-vector-env PPO entries (configs/agents/ppo_native.yml)."""
+"""The native-vector-env PPO entries (agents/configs/ppo_native.yml)."""
 
 from __future__ import annotations
 
-from pathlib import Path
+from agents.runs.hyperparams import CONFIG_DIR, algo_kwargs, load_hyperparams
 
-import softhand_env
-from agents.hyperparams import algo_kwargs, load_hyperparams
-
-CONF = Path(softhand_env.__file__).parent / "configs" / "agents" / "ppo_native.yml"
+CONF = CONFIG_DIR / "ppo_native.yml"
 
 
 def test_reorient_native_entry_loads_and_keeps_the_ppo_yml_task_settings():

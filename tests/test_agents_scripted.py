@@ -11,7 +11,7 @@ import pytest
 import softhand_env  # noqa: F401  (registers the environments)
 from agents.scripted import HandlingProcessPolicy, ModelBasedPolicy, PaperSequencePolicy
 from softhand_env import quasistatic as qs
-from softhand_env.tools.simulate import run_paper_motions
+from softhand_env.physics.motions import run_paper_motions
 
 
 def test_chapter5_sequence_through_gym_reproduces_the_dynamic_model_run(make_env, rollout):

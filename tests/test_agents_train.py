@@ -12,8 +12,10 @@ import pytest
 import torch
 import yaml
 
-from agents import cli, env_factory, hyperparams, loading, train
-from agents.zoo_dialect import zoo_yaml_load
+from agents import train
+from agents.common import cli, env_factory
+from agents.runs import hyperparams, loading
+from agents.runs.zoo_dialect import zoo_yaml_load
 
 ROOT = Path(__file__).resolve().parent.parent
 ENV = {**os.environ, "PYTHONPATH": str(ROOT), "SDL_VIDEODRIVER": "dummy", "MPLBACKEND": "Agg"}
@@ -226,7 +228,7 @@ def _pose_env(steps: int = 400):
 
 
 def test_loop_plan_has_bounded_steps_loops_then_translation():
-    from agents.residual import LoopPlanPolicy
+    from agents.scripted.loop_plan import LoopPlanPolicy
 
     plan = LoopPlanPolicy.from_env(_pose_env())
     corners = plan.corners(5.0, -6.0)
@@ -245,7 +247,8 @@ def test_loop_plan_has_bounded_steps_loops_then_translation():
 
 
 def test_residual_wrapper_with_zero_actions_replays_the_plan():
-    from agents.residual import LoopPlanPolicy, ResidualWrapper
+    from agents.scripted.loop_plan import LoopPlanPolicy
+    from agents.wrappers.residual import ResidualWrapper
 
     raw, wrapped = _pose_env(60), ResidualWrapper(_pose_env(60))
     plan = LoopPlanPolicy.from_env(raw)
@@ -267,7 +270,7 @@ def test_residual_wrapper_with_zero_actions_replays_the_plan():
 
 
 def test_residual_wrapper_offsets_are_bounded_and_it_needs_absolute_actions():
-    from agents.residual import ResidualWrapper
+    from agents.wrappers.residual import ResidualWrapper
 
     wrapped = ResidualWrapper(_pose_env(30), delta_deg=0.5, max_offset_deg=2.0)
     wrapped.reset(seed=0)

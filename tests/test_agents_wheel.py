@@ -52,9 +52,9 @@ def test_wheel_installs_trains_and_evaluates_shipped_models_outside_the_repo(tmp
                "3", "--no-plots"], cwd=work, env=clean)
     assert "success rate                           100.0 %" in out, out
     # RL Zoo reads the installed hyper-parameter file unchanged
-    conf = run([py, "-c", "from agents.hyperparams import config_path; "
+    conf = run([py, "-c", "from agents.runs.hyperparams import config_path; "
                 "print(config_path('ppo', None))"], cwd=work, env=clean).strip()
-    assert conf.startswith(str(venv)) and conf.endswith("softhand_env/configs/agents/ppo.yml")
+    assert conf.startswith(str(venv)) and conf.endswith("agents/configs/ppo.yml")
     run([py, "-m", "rl_zoo3.train", "--gym-packages", "softhand_env", "--algo", "ppo", "--env",
          "SoftHandReorient-v0", "--conf-file", conf, "-n", "256", "--eval-freq", "-1",
          "--num-threads", "1", "-f", "zoo", "--hyperparams", "n_envs:2", "n_steps:64",

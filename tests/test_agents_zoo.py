@@ -12,9 +12,10 @@ from pathlib import Path
 
 import pytest
 
-from agents import cli, evaluate
-from agents.hyperparams import config_path
-from agents.loading import MODELS_DIR
+from agents import evaluate
+from agents.common import cli
+from agents.runs.hyperparams import config_path
+from agents.runs.loading import MODELS_DIR
 
 ROOT = Path(__file__).resolve().parent.parent
 ENV = {**os.environ, "PYTHONPATH": str(ROOT), "OMP_NUM_THREADS": "1", "MPLBACKEND": "Agg"}
@@ -87,7 +88,7 @@ def test_agents_do_not_import_rl_zoo3_in_process():
     """Importing rl_zoo3 replaces gymnasium's TimeLimit for every env of the process (it adds
     ``TimeLimit.truncated`` to infos); our CLIs read and write its formats without it."""
     code = ("import sys, agents.train, agents.evaluate, agents.demo; "
-            "from agents.hyperparams import algo_kwargs, load_hyperparams; "
+            "from agents.runs.hyperparams import algo_kwargs, load_hyperparams; "
             "algo_kwargs('ppo', {**load_hyperparams('ppo', 'SoftHandPose-v0'), "
             "'learning_rate': 'lin_1e-3'}); assert 'rl_zoo3' not in sys.modules")
     subprocess.run([sys.executable, "-c", code], env=ENV, check=True, timeout=300)

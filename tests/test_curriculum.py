@@ -9,8 +9,8 @@ from stable_baselines3 import PPO
 from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv, VecNormalize
 
 import softhand_env  # noqa: F401
-from agents.curriculum import GoalCurriculumCallback, set_goal_scale
-from agents.native_vec_env import NativeVecEnv, make_sb3_vec_env
+from agents.sb3.curriculum import GoalCurriculumCallback, set_goal_scale
+from agents.sb3.native_vec_env import NativeVecEnv, make_sb3_vec_env
 
 ENV_ID = "SoftHandPose-v0"
 N = 3

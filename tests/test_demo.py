@@ -26,7 +26,8 @@ def test_demo_writes_paper_figures_and_the_comparison_table(tmp_path):
 def test_demo_exits_2_naming_a_missing_learned_model(tmp_path, monkeypatch, capsys):
     import pytest
 
-    from agents import cli, loading
+    from agents.common import cli
+    from agents.runs import loading
 
     monkeypatch.setattr(loading, "MODELS_DIR", tmp_path / "no_models")
     monkeypatch.setattr(demo, "shipped_models", loading.shipped_models)

@@ -12,9 +12,9 @@ import torch
 import yaml
 
 from agents import distill, train
-from agents.cli import UserError
-from agents.loading import ModelPolicy
-from agents.native_vec_env import make_sb3_vec_env
+from agents.common.cli import UserError
+from agents.runs.loading import ModelPolicy
+from agents.sb3.native_vec_env import make_sb3_vec_env
 
 ENV_ID = "SoftHandReorient-v0"
 WRAPPER = [{"agents.time_feature.TimeFeature": {"max_steps": 8}}]
@@ -56,7 +56,7 @@ def test_student_learns_the_teacher_and_plays_as_a_saved_blind_model(tmp_path, t
     curve = np.load(run / "dagger_curve.npz")
     assert list(curve["iteration"]) == [0, 1, 2]
     # validation re-seeds its env: the same goals, the same result every time
-    from agents.metrics import success_kwargs
+    from agents.common.metrics import success_kwargs
 
     val = make_sb3_vec_env(ENV_ID, 4, 0, {**KWARGS, **success_kwargs(ENV_ID)}, "native",
                            env_wrapper=WRAPPER)

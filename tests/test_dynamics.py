@@ -11,9 +11,9 @@ import pytest
 from softhand_env.physics import HandPhysics, PhysicsError, kernel, model
 from softhand_env.physics.integrate import RK4_A, RK4_B, RK4_C, integrate_fixed, rk_step
 from softhand_env.physics.model import NQ, NY, pack_params, potential_energy
+from softhand_env.physics.motions import PAPER_MOTIONS_DEG, run_paper_motions, run_setpoint_sequence
 from softhand_env.physics.params import HandParams
 from softhand_env.physics.reference import advance_reference, mass_matrix
-from softhand_env.tools.simulate import PAPER_MOTIONS_DEG, run_paper_motions, run_setpoint_sequence
 
 PARAMS = HandParams()
 

@@ -10,7 +10,7 @@ from stable_baselines3.common.env_checker import check_env
 from stable_baselines3.common.vec_env import DummyVecEnv
 
 import softhand_env  # noqa: F401
-from agents.native_vec_env import NativeVecEnv
+from agents.sb3.native_vec_env import NativeVecEnv
 from softhand_env.envs.dict_obs import PRIVILEGED_NAMES
 from softhand_env.envs.observation import ANGLE_SCALE, DN_SCALE, POSITION_SCALE
 

@@ -6,7 +6,7 @@ import gymnasium as gym
 import numpy as np
 
 import softhand_env  # noqa: F401
-from softhand_env.tools.simulate import PAPER_MOTIONS_DEG, run_paper_motions
+from softhand_env.physics.motions import PAPER_MOTIONS_DEG, run_paper_motions
 
 STEPS_PER_MOTION = 50  # 1 s per motion at the default 20 ms control period
 

@@ -15,9 +15,9 @@ import pytest
 
 from softhand_env.physics import HandPhysics, friction, kernel
 from softhand_env.physics.model import pack_params
+from softhand_env.physics.motions import PAPER_MOTIONS_DEG
 from softhand_env.physics.params import HandParams, hand_params_from_dict, load_hand_params
 from softhand_env.quasistatic import handling_path
-from softhand_env.tools.simulate import PAPER_MOTIONS_DEG
 
 PARAMS = HandParams()
 STEP = 200  # substeps per 20 ms control step

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from agents import learning_curves
-from agents.cli import UserError
+from agents.common.cli import UserError
 
 
 def test_reads_ppo_and_dagger_runs_and_draws_both_panels(tmp_path):

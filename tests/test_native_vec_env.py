@@ -9,7 +9,7 @@ from stable_baselines3.common.monitor import Monitor
 from stable_baselines3.common.vec_env import DummyVecEnv, VecNormalize
 
 import softhand_env  # noqa: F401
-from agents.native_vec_env import NativeVecEnv, make_sb3_vec_env, split_infos
+from agents.sb3.native_vec_env import NativeVecEnv, make_sb3_vec_env, split_infos
 
 N = 4
 ENV_ID = "SoftHandReorient-v0"

@@ -11,8 +11,8 @@ from stable_baselines3 import PPO, SAC, HerReplayBuffer
 from stable_baselines3.common.vec_env import DummyVecEnv
 
 import softhand_env  # noqa: F401
-from agents.native_vec_env import make_sb3_vec_env
-from agents.policies import AsymmetricActorCriticPolicy, BlindActorSACPolicy, KeyConcat
+from agents.sb3.native_vec_env import make_sb3_vec_env
+from agents.sb3.policies import AsymmetricActorCriticPolicy, BlindActorSACPolicy, KeyConcat
 
 HER_KWARGS = {"n_sampled_goal": 4, "goal_selection_strategy": "future", "copy_info_dict": True}
 

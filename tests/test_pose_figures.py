@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 
 from agents import pose_figures
-from agents.cli import UserError, run_cli
-from agents.pose_plots import OUTCOMES, signed_area
+from agents.common.cli import UserError, run_cli
+from agents.plots.pose import OUTCOMES, signed_area
 
 #: A 3 x 3 grid with the loop plan, goals at -12, 0, 12 mm / deg: the centre succeeds, the
 #: corners outside the task box mostly do not.

@@ -28,8 +28,8 @@ import pytest
 
 from softhand_env import quasistatic as qs
 from softhand_env.physics.model import N_DIAG, csm_rhs, initial_state, pack_params
+from softhand_env.physics.motions import PAPER_MOTIONS_DEG, run_paper_motions
 from softhand_env.physics.params import HandParams, load_hand_params
-from softhand_env.tools.simulate import PAPER_MOTIONS_DEG, run_paper_motions
 
 sys.path.insert(0, str(Path(__file__).parent))
 import sympy_reference  # noqa: E402

@@ -13,8 +13,8 @@ import pytest
 
 from softhand_env.envs.randomization import FIELDS, PRESET
 from softhand_env.physics import HandPhysics, kernel, stability
+from softhand_env.physics.motions import PAPER_MOTIONS_DEG, run_paper_motions, run_setpoint_sequence
 from softhand_env.physics.params import HandParams, load_hand_params
-from softhand_env.tools.simulate import PAPER_MOTIONS_DEG, run_paper_motions, run_setpoint_sequence
 
 PARAMS = HandParams()
 FINGER = "finger joint (I, Kp, Kd)"

@@ -7,8 +7,8 @@ import numpy as np
 import pytest
 
 import softhand_env  # noqa: F401
-from agents.native_vec_env import make_sb3_vec_env
-from agents.time_feature import TimeFeature, VecTimeFeature
+from agents.sb3.native_vec_env import make_sb3_vec_env
+from agents.wrappers.time_feature import TimeFeature, VecTimeFeature
 
 ENV_ID = "SoftHandReorient-v0"
 STEPS = 6

@@ -9,6 +9,7 @@ import pytest
 
 from softhand_env.physics import stability
 from softhand_env.physics.model import DN_1, TH_1, TH_OBJ, initial_state
+from softhand_env.physics.motions import run_paper_motions
 from softhand_env.physics.params import HandParams
 from softhand_env.physics.validity import (
     VALIDATED_THETA_P,
@@ -16,7 +17,6 @@ from softhand_env.physics.validity import (
     validity_report,
     within_validated_range,
 )
-from softhand_env.tools.simulate import run_paper_motions
 
 PARAMS = HandParams()
 

@@ -18,7 +18,7 @@ True}``; without them ``compute_reward`` raises a ValueError saying so. The goal
 is kept out of ``observation`` so that relabelling ``desired_goal`` (hindsight experience
 replay) leaves no stale copy of the old goal for the policy to read. ``achieved_goal`` is
 the object's pose: a blind policy must not read it (it is there for relabelling only; see
-:mod:`agents.policies`).
+:mod:`agents.sb3.policies`).
 
 ``gym.make(id, privileged_obs=True)`` returns the env under :class:`PrivilegedObservation`::
 

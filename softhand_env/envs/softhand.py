@@ -152,7 +152,7 @@ class SoftHandEnv(gym.Env):
     Goal curriculum: ``env.unwrapped.task.set_goal_scale(s)``, s in (0, 1], draws the goals of
     the following resets from s times the goal ranges (the same uniform draws, scaled; s = 1
     is the default); the native vector env's N environments share the task, so one call
-    scales them all, autoresets included. Stable-Baselines3: ``agents.curriculum``
+    scales them all, autoresets included. Stable-Baselines3: ``agents.sb3.curriculum``
     (``set_goal_scale(venv, s)`` on a ``DummyVecEnv`` or the native ``NativeVecEnv``,
     ``GoalCurriculumCallback``). It is not a reset option, which would reach explicit resets
     only, not the autoresets of vector envs.

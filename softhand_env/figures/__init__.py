@@ -9,9 +9,9 @@ Usage::
 Each subcommand lives in its own module ``softhand_env.figures.<name>`` that defines
 ``add_arguments(parser)`` and ``run(args) -> list[pathlib.Path]`` (the files written).
 Modules are imported lazily so that ``--help`` stays fast and matplotlib is only loaded
-when a figure is drawn. Two helper modules are not subcommands: ``overlay`` draws text (time,
-goal, object pose) on rendered frames, ``episodes`` draws evaluated episodes (trajectory plot,
-title, GIF frames) for ``agents.evaluate``.
+when a figure is drawn. One helper module is not a subcommand: ``overlay`` draws text (time,
+goal, object pose) on rendered frames (the evaluated-episode plots that use it are
+``agents.plots.episodes``).
 """
 
 from __future__ import annotations
@@ -36,18 +36,10 @@ def main(argv: Sequence[str] | None = None) -> int:
     for name, (module_name, help_text) in SUBCOMMANDS.items():
         p = sub.add_parser(name, help=help_text)
         p.add_argument("--out", default=f"out/{name}", help="output directory (created)")
-        try:
-            module = importlib.import_module(module_name)
-        except ModuleNotFoundError as exc:  # subcommand not built yet
-            if exc.name != module_name:
-                raise
-            p.set_defaults(_unavailable=True)
-            continue
+        module = importlib.import_module(module_name)
         module.add_arguments(p)
         p.set_defaults(_run=module.run)
     args = parser.parse_args(argv)
-    if getattr(args, "_unavailable", False):
-        parser.error(f"figure command {args.command!r} is not available in this build")
     try:
         written = args._run(args)
     except ValueError as exc:

@@ -97,7 +97,7 @@ def run(args: argparse.Namespace) -> list[Path]:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from softhand_env.tools.simulate import run_paper_motions
+    from softhand_env.physics.motions import run_paper_motions
 
     if not args.duration > 0:
         raise ValueError(f"--duration must be > 0 (got {args.duration})")

@@ -6,7 +6,8 @@ tableaus) / :mod:`.kernel` (compiled RK4 kernels, one system or N in lanes) ->
 :mod:`.failure` (failure classification) -> :mod:`.hand` (:class:`HandPhysics`: N hands,
 stepping, rollback, named read-outs); beside them :mod:`.friction` (friction ratio, tension and
 slip from the contact impulses), :mod:`.stability` (a-priori RK4 stability check) and
-:mod:`.validity` (validated range of the contact model); :mod:`.reference` is an independent
+:mod:`.validity` (validated range of the contact model); :mod:`.motions` runs set-point
+sequences through :mod:`.hand` (the paper's motions 1-8); :mod:`.reference` is an independent
 plain-NumPy model for cross-checks.
 
 The names of :mod:`.hand` are available here (``from softhand_env.physics import

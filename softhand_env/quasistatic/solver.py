@@ -769,8 +769,8 @@ def solve_path(
 def _base_flags(d: np.ndarray, theta_p: np.ndarray, a: float) -> np.ndarray:
     """(N, 2) True where the contact circle passes the fingertip base.
 
-    Uses :func:`~softhand_env.contact.contact_within_base`; compressions of degenerate rows can
-    be round-off negatives (|d| < D_DEGENERATE) and are clipped to 0 for the check.
+    Uses :func:`~softhand_env.physics.contact.contact_within_base`; compressions of degenerate
+    rows can be round-off negatives (|d| < D_DEGENERATE) and are clipped to 0 for the check.
     """
     from softhand_env.physics.contact import contact_within_base
 

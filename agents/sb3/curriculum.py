@@ -7,7 +7,7 @@ env, so one call changes every environment from its next reset:
 
 * Gymnasium: ``env.unwrapped.task.set_goal_scale(0.3)`` (single or native vector env);
 * SB3: :func:`set_goal_scale` on a ``DummyVecEnv`` or a
-  :class:`~agents.native_vec_env.NativeVecEnv` (under any ``VecEnvWrapper``, e.g.
+  :class:`~agents.sb3.native_vec_env.NativeVecEnv` (under any ``VecEnvWrapper``, e.g.
   ``VecNormalize``); ``SubprocVecEnv`` keeps its envs in other processes and is refused;
 * during ``model.learn``: :class:`GoalCurriculumCallback` (a linear schedule), which logs
   ``curriculum/goal_scale``.

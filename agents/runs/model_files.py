@@ -72,8 +72,8 @@ def rebuilt_entries(algo_cls: Any, hyperparams: dict[str, Any],
     """The ``:serialized:`` entries of a model, rebuilt from its run's hyper-parameters and the
     spaces of its env (:data:`REBUILT_ENTRIES`); ModelFileError if the config cannot give them.
     """
-    from agents.hyperparams import SCHEDULE_KEYS, _schedule
-    from agents.zoo_dialect import policy_kwargs_from
+    from agents.runs.hyperparams import SCHEDULE_KEYS, _schedule
+    from agents.runs.zoo_dialect import policy_kwargs_from
 
     policy = hyperparams.get("policy")
     aliases = getattr(algo_cls, "policy_aliases", {})

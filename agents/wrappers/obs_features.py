@@ -1,7 +1,7 @@
 """Observation features appended by wrappers (remaining time, action history).
 
 A feature wrapper appends entries to a 1-D Box observation, or to the ``observation`` entry of
-a Dict observation (the blind part the actor reads, :mod:`agents.policies`); the other Dict
+a Dict observation (the blind part the actor reads, :mod:`agents.sb3.policies`); the other Dict
 entries are left as they are. :func:`space_with_entries` and :func:`append_entries` do this for
 the space and for observations (one or a batch).
 """

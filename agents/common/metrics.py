@@ -13,7 +13,7 @@ from typing import Any
 
 import numpy as np
 
-from agents.env_factory import task_targets
+from agents.common.env_factory import task_targets
 
 #: The benchmark's success rule (within 1 mm / 1 deg at the end of the episode), fixed:
 #: per controlled coordinate, (env keyword, value).

@@ -28,7 +28,7 @@ from typing import Any
 
 import numpy as np
 
-from softhand_env.tools.simulate import PAPER_MOTIONS_DEG
+from softhand_env.physics.motions import PAPER_MOTIONS_DEG
 
 #: Keywords every scripted policy needs: the action is the set-point pair in radians.
 ABSOLUTE_RAD = {"action_mode": "absolute", "normalize_action": False}

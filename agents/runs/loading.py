@@ -1,24 +1,12 @@
 """Saved runs: find a model, its normalisation statistics and run config; play it like a script.
 
-A run is laid out as RL Zoo lays out its runs (``rl_zoo3.train`` writes the same, and
-``rl_zoo3.enjoy -f <log-folder>`` plays ours)::
-
-    <log-folder>/<algo>/<env_id>_<k>/
-        <env_id>.zip                  final model (SB3 zip)
-        <env_id>/config.yml           hyper-parameters (the zoo's OrderedDict YAML); ours add a
-                                      ``softhand`` entry: env signature, seed, validation
-                                      results, versions and the sha256 of every model file
-        <env_id>/args.yml             command-line arguments (the zoo's; env_kwargs)
-        <env_id>/vecnormalize.npz     observation statistics as plain arrays (read here)
-        <env_id>/vecnormalize.pkl     the same as SB3 pickles it (read by rl_zoo3 only)
-        best_model.zip                best on the validation goals (+ best_model_vecnormalize.*)
-        rl_model_<n>_steps.zip        checkpoints (+ rl_model_vecnormalize_<n>_steps.*)
+The layout of a run, and the names of its files, are in :mod:`agents.runs.layout`.
 
 :func:`resolve_model` finds the files of a model given as a run directory, a ``.zip`` in one,
 or the id of a shipped model (``agents/models/<algo>/<env id>_1``, installed with the
 package). :class:`ModelPolicy` loads it without running code from it (no pickle: see
-:mod:`agents.model_files`, :mod:`agents.normalization`; ``env_wrapper`` allow-list:
-:func:`agents.env_factory.wrapper_list`; checksums from ``config.yml``) and wraps it in the
+:mod:`agents.runs.model_files`, :mod:`agents.runs.normalization`; ``env_wrapper`` allow-list:
+:func:`agents.common.env_factory.wrapper_list`; checksums from ``config.yml``) and wraps it in the
 scripted policies' ``predict`` signature, so one rollout loop evaluates both.
 """
 
@@ -34,24 +22,21 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 
-from agents.cli import UserError
-from agents.env_factory import make_env
-from agents.hyperparams import ALGOS, algo_class, normalize_kwargs
-from agents.model_files import ModelFileError, check_sha256, load_sb3
-from agents.normalization import ObsNormalizer
-from agents.zoo_dialect import zoo_yaml_load
+from agents.common.cli import UserError
+from agents.common.env_factory import make_env
+from agents.runs.layout import (
+    ARGS_FILE,
+    BEST_MODEL,
+    CONFIG_FILE,
+    MODELS_DIR,
+    RECORD_KEY,
+    STATS_NPZ,
+)
+from agents.runs.hyperparams import ALGOS, algo_class, normalize_kwargs
+from agents.runs.model_files import ModelFileError, check_sha256, load_sb3
+from agents.runs.normalization import ObsNormalizer
+from agents.runs.zoo_dialect import zoo_yaml_load
 
-#: Shipped models (installed with the package), laid out as RL Zoo runs.
-MODELS_DIR = Path(__file__).resolve().parent / "models"
-#: Files of a run's parameter directory ``<run>/<env id>/``.
-CONFIG_FILE = "config.yml"
-ARGS_FILE = "args.yml"
-STATS_NPZ = "vecnormalize.npz"
-STATS_PKL = "vecnormalize.pkl"
-#: Key of our run record inside the zoo's ``config.yml``.
-RECORD_KEY = "softhand"
-#: Best model of a run.
-BEST_MODEL = "best_model"
 _CHECKPOINT = re.compile(r"rl_model_(\d+)_steps")
 
 

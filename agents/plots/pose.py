@@ -40,7 +40,7 @@ OUTCOME_COLORS: dict[str, str] = {
 
 #: theta change per mm of x along the straight rotation of both fingers (deg/mm): the
 #: rotation-coupled line theta* = COUPLING x* that needs no rolling loop (the constant of
-#: :class:`agents.residual.LoopPlanPolicy`).
+#: :class:`agents.scripted.loop_plan.LoopPlanPolicy`).
 COUPLING_DEG_PER_MM = 0.77
 
 

@@ -24,7 +24,7 @@ import numpy as np
 from gymnasium import spaces
 from stable_baselines3.common.vec_env import VecEnv, VecEnvWrapper
 
-from agents.obs_features import append_entries, space_with_entries
+from agents.wrappers.obs_features import append_entries, space_with_entries
 
 #: Largest number of actions kept.
 MAX_ACTIONS = 100

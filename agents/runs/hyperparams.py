@@ -1,29 +1,26 @@
 """Hyper-parameter files (RL Zoo's dialect, keyed by env id) and algorithm keywords.
 
-:func:`load_hyperparams` reads ``softhand_env/configs/agents/<algo>.yml`` (installed with the
+:func:`load_hyperparams` reads ``agents/configs/<algo>.yml`` (installed with the
 package; a mapping keyed by env id, YAML anchors allowed). The files are written in RL Zoo's
 dialect, so ``python -m rl_zoo3.train --gym-packages softhand_env --conf-file <file>`` reads
 them unchanged: ``policy_kwargs`` as a ``"dict(...)"`` string (read here without ``eval``,
-:mod:`agents.zoo_dialect`), ``lin_<v>`` linear schedules.
+:mod:`agents.runs.zoo_dialect`), ``lin_<v>`` linear schedules.
 :func:`algo_kwargs` turns an entry into algorithm keywords.
 """
 
 from __future__ import annotations
 
-import importlib.util
 import math
 from pathlib import Path
 from typing import Any
 
 import yaml
 
-from agents.cli import UserError
-from agents.zoo_dialect import normalize_from, policy_kwargs_from
+from agents.common.cli import UserError
+from agents.runs.zoo_dialect import normalize_from, policy_kwargs_from
 
-#: Directory of the hyper-parameter files (``<algo>.yml``).
-_SPEC = importlib.util.find_spec("softhand_env")
-assert _SPEC is not None and _SPEC.origin is not None
-CONFIG_DIR = Path(_SPEC.origin).parent / "configs" / "agents"
+#: Directory of the hyper-parameter files (``<algo>.yml``), installed with the package.
+CONFIG_DIR = Path(__file__).resolve().parent.parent / "configs"
 
 #: Algorithm name -> (module, class). Imported lazily (torch is slow to import).
 ALGOS: dict[str, tuple[str, str]] = {
@@ -58,7 +55,7 @@ REQUIRED_KEYS = ("n_timesteps", "policy")
 
 # ---------------------------------------------------------------------------- hyper-params
 def config_path(algo: str, conf_file: str | None) -> Path:
-    """The hyper-parameter file: ``conf_file`` or ``configs/agents/<algo>.yml``."""
+    """The hyper-parameter file: ``conf_file`` or ``agents/configs/<algo>.yml``."""
     if conf_file is not None:
         return Path(conf_file)
     for ext in ("yml", "yaml"):

@@ -8,11 +8,11 @@ and place of sb3-contrib's ``TimeFeatureWrapper``. It carries no information abo
 
 * :class:`TimeFeature`: a Gymnasium wrapper of one env (an ``env_wrapper`` entry of a run);
 * :class:`VecTimeFeature`: the same feature for an SB3 ``VecEnv`` (the native vector env, which
-  takes no single-env wrapper: :func:`agents.native_vec_env.make_sb3_vec_env` replaces
+  takes no single-env wrapper: :func:`agents.sb3.native_vec_env.make_sb3_vec_env` replaces
   :class:`TimeFeature` by it through :attr:`TimeFeature.vector_wrapper`).
 
 Both append to a Box observation, or to the ``observation`` entry of a Dict observation (the
-blind part the actor reads, :mod:`agents.policies`); the two give the same observations
+blind part the actor reads, :mod:`agents.sb3.policies`); the two give the same observations
 (tested), so a model trained on either plays the other.
 """
 
@@ -24,7 +24,7 @@ import gymnasium as gym
 import numpy as np
 from stable_baselines3.common.vec_env import VecEnv, VecEnvWrapper
 
-from agents.obs_features import append_entries, space_with_entries
+from agents.wrappers.obs_features import append_entries, space_with_entries
 
 #: Largest episode length the feature accepts (control steps).
 MAX_STEPS = 1_000_000

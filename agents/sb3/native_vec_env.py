@@ -26,7 +26,7 @@ translates between the two conventions without copying any transition logic:
 
 :func:`make_sb3_vec_env` builds either this adapter (``vec_env="native"``) or the
 ``DummyVecEnv``/``SubprocVecEnv`` of monitored single envs of
-:func:`agents.env_factory.make_vec_env`.
+:func:`agents.common.env_factory.make_vec_env`.
 """
 
 from __future__ import annotations
@@ -269,19 +269,19 @@ def make_sb3_vec_env(
     env_kwargs : dict, optional
         ``gym.make`` keywords (``max_episode_steps`` included).
     vec_env : str
-        ``"dummy"`` / ``"subproc"`` (single envs, :func:`agents.env_factory.make_vec_env`) or
+        ``"dummy"`` / ``"subproc"`` (single envs, :func:`agents.common.env_factory.make_vec_env`) or
         ``"native"`` (one :class:`~softhand_env.envs.vector.SoftHandVectorEnv` in
         :class:`NativeVecEnv`, which reports the episode statistics itself).
     env_wrapper : optional
         Single-env wrappers (``env_wrapper`` of the hyper-parameter YAML). The native vector
         env takes only wrappers with a ``vector_wrapper`` attribute (an SB3 ``VecEnvWrapper``
-        taking the same keywords, e.g. :class:`agents.time_feature.TimeFeature`), applied in
-        the same order; any other raises ValueError.
+        taking the same keywords, e.g. :class:`agents.wrappers.time_feature.TimeFeature`),
+        applied in the same order; any other raises ValueError.
     """
     if vec_env not in SB3_VEC_ENVS:
         raise ValueError(f"vec_env must be one of {SB3_VEC_ENVS} (got {vec_env!r})")
     if vec_env != "native":
-        from agents.env_factory import make_vec_env
+        from agents.common.env_factory import make_vec_env
 
         return make_vec_env(env_id, n_envs, dict(env_kwargs or {}), seed, vec_env,
                             env_wrapper=env_wrapper)
@@ -302,7 +302,7 @@ def vector_wrappers(env_wrapper: Any) -> list[tuple[Any, dict[str, Any]]]:
     """The SB3 ``VecEnvWrapper`` classes (and keywords) equivalent to the single-env wrappers
     of an ``env_wrapper`` entry, in order: each class's ``vector_wrapper`` attribute. A wrapper
     without one raises ValueError (it cannot wrap the batched env)."""
-    from agents.env_factory import wrapper_list
+    from agents.common.env_factory import wrapper_list
 
     out = []
     for cls, kw in wrapper_list(env_wrapper):

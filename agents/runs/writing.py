@@ -1,7 +1,7 @@
-"""Writing a run in RL Zoo's layout (see :mod:`agents.loading` for the layout and reading).
+"""Writing a run in RL Zoo's layout (:mod:`agents.runs.layout`; reading: :mod:`agents.runs.loading`).
 
 :func:`save_vecnormalize` writes observation statistics twice: ``.npz`` (plain arrays, what
-:mod:`agents.loading` reads) and ``.pkl`` (SB3's pickle, what ``rl_zoo3.enjoy`` reads).
+:mod:`agents.runs.loading` reads) and ``.pkl`` (SB3's pickle, what ``rl_zoo3.enjoy`` reads).
 :func:`write_run_config` writes ``<env id>/config.yml`` (the zoo's hyper-parameter
 ``OrderedDict`` plus our run record, with the sha256 of every model file of the run) and
 ``<env id>/args.yml``.
@@ -12,10 +12,11 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any
 
-from agents.loading import ARGS_FILE, CONFIG_FILE, RECORD_KEY
-from agents.model_files import record_sha256
-from agents.normalization import save_stats
-from agents.zoo_dialect import zoo_yaml_dump
+from agents.runs.layout import ARGS_FILE, CONFIG_FILE, RECORD_KEY
+from agents.runs.model_files import record_sha256
+from agents.runs.normalization import save_stats
+from agents.runs.records import RunRecord
+from agents.runs.zoo_dialect import zoo_yaml_dump
 
 
 def save_vecnormalize(vecnormalize: Any, base: Path) -> None:
@@ -44,12 +45,12 @@ def write_args(run_dir: Path, env_id: str, args: dict[str, Any]) -> None:
 
 
 def write_run_config(run_dir: Path, env_id: str, hyperparams: dict[str, Any],
-                     record: dict[str, Any]) -> Path:
+                     record: RunRecord) -> Path:
     """``<env id>/config.yml``: ``hyperparams`` plus ``record`` under ``softhand`` with
     ``sha256`` of :func:`model_files` (written last, after every model file)."""
     params = run_dir / env_id
     params.mkdir(parents=True, exist_ok=True)
-    record = {**record, "sha256": record_sha256(run_dir, model_files(run_dir, env_id))}
+    saved = {**record.to_yaml(), "sha256": record_sha256(run_dir, model_files(run_dir, env_id))}
     path = params / CONFIG_FILE
-    zoo_yaml_dump({**hyperparams, RECORD_KEY: record}, path)
+    zoo_yaml_dump({**hyperparams, RECORD_KEY: saved}, path)
     return path

@@ -7,7 +7,7 @@ import math
 import numpy as np
 import pytest
 
-from softhand_env.figures.episodes import (
+from agents.plots.episodes import (
     choose_episode,
     evaluation_title,
     gif_frames,

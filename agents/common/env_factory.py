@@ -14,7 +14,7 @@ from typing import Any
 
 import gymnasium as gym
 
-from agents.cli import UserError
+from agents.common.cli import UserError
 
 #: ``vec_env`` values.
 VEC_ENVS = ("dummy", "subproc")

@@ -16,7 +16,7 @@ the deployed policy is as blind as before.
 
 Importing this module registers the aliases with PPO, A2C and SAC, so a hyper-parameter file
 may say ``policy: AsymmetricPolicy`` (``python -m agents.train`` imports it; with RL Zoo add
-``--gym-packages agents.policies``). ``actor_keys`` / ``critic_keys`` in ``policy_kwargs``
+``--gym-packages agents.sb3.policies``). ``actor_keys`` / ``critic_keys`` in ``policy_kwargs``
 override the defaults.
 """
 

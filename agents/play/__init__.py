@@ -1,0 +1,3 @@
+"""Playing a policy: the policy and env of a ``--model`` / ``--policy`` choice
+(:mod:`.choice`) and the episode and goal-set loops (:mod:`.rollout`), shared by
+``agents.evaluate`` and ``agents.pose_figures``."""

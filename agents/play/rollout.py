@@ -1,0 +1,128 @@
+"""Playing episodes: one episode from a seed (optionally a given goal) and a seeded goal set.
+
+:func:`run_episode` plays one episode and returns its record (trajectory included);
+:func:`evaluate` plays a goal set and returns the summary
+(:func:`agents.common.metrics.summarize` plus failures and the friction needed) and the records;
+:class:`EvaluationResults` is what ``agents.evaluate`` writes to ``results.yml``.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from agents.common.cli import UserError
+from agents.common.metrics import final_errors, summarize
+
+
+def run_episode(
+    env: Any, policy: Any, seed: int, deterministic: bool = True, frames: list | None = None,
+    goal: Sequence[float] | None = None,
+) -> dict[str, Any]:
+    """Play one episode from ``reset(seed=seed)`` (with ``options={"goal": goal}`` if given,
+    SI units, shape (goal_dim,)); returns its record (trajectory included;
+    ``max_friction_ratio``: the largest step friction ratio |J_t| / J_n of either finger over
+    the steps that did not end the episode with a failure other than slip, i.e. the friction
+    coefficient the episode needed while the grasp held).
+
+    ``frames``: if a list, ``env.render()`` frames are appended (``render_mode="rgb_array"``).
+    """
+    options = None if goal is None else {"goal": np.asarray(goal, dtype=np.float64)}
+    try:
+        obs, info = env.reset(seed=seed, options=options)
+    except ValueError as exc:
+        raise UserError(f"goal {list(goal or ())}: {exc}") from None
+    poses, setpoints = [info["object_pose"]], [info["setpoint"]]
+    if frames is not None:
+        frames.append(env.render())
+    state, start = None, np.array([True])
+    ret, steps, friction = 0.0, 0, 0.0
+    while True:
+        action, state = policy.predict(obs, state, start, deterministic)
+        start = np.array([False])
+        obs, reward, terminated, truncated, info = env.step(action)
+        ret += float(reward)
+        steps += 1
+        if info.get("termination_reason") in (None, "slip"):  # the grasp held (or slipped)
+            friction = max(friction, float(np.max(info["friction_ratio"])))
+        poses.append(info["object_pose"])
+        setpoints.append(info["setpoint"])
+        if frames is not None:
+            frames.append(env.render())
+        if terminated or truncated:
+            break
+    return {
+        "seed": int(seed),
+        "success": bool(info["is_success"]),
+        "goal": [float(g) for g in info.get("goal", ())],
+        "final_pose": [float(v) for v in info["object_pose"]],
+        "return": ret,
+        "length": steps,
+        "termination_reason": info.get("termination_reason"),
+        "max_friction_ratio": friction,
+        "pose": np.array(poses),
+        "setpoint": np.array(setpoints),
+    }
+
+
+def evaluate(
+    env: Any, policy: Any, seeds: Sequence[int], targets: Sequence[str], deterministic: bool = True,
+    goals: Sequence[Sequence[float]] | None = None,
+) -> tuple[dict[str, float], list[dict[str, Any]]]:
+    """Play every goal of ``seeds`` (or episode k: ``seeds[k]`` with ``goals[k]``); returns the
+    summary and the episode records."""
+    episodes = []
+    for k, seed in enumerate(seeds):
+        ep = run_episode(env, policy, seed, deterministic, goal=None if goals is None else goals[k])
+        info = {"object_pose": ep["final_pose"], "goal": ep["goal"]}
+        ep["errors"] = final_errors(info, targets)
+        episodes.append(ep)
+    summary = summarize(
+        targets,
+        [ep["success"] for ep in episodes],
+        [ep["errors"] for ep in episodes],
+        [ep["return"] for ep in episodes],
+        [ep["length"] for ep in episodes],
+    )
+    summary["n_failures"] = sum(ep["termination_reason"] not in (None, "success")
+                                for ep in episodes)
+    summary["max_friction_ratio"] = max(ep["max_friction_ratio"] for ep in episodes)
+    return summary, episodes
+
+
+#: Keys of an episode record that stay out of ``results.yml`` (the trajectory arrays).
+TRAJECTORY_KEYS = ("pose", "setpoint")
+
+
+@dataclass
+class EvaluationResults:
+    """An evaluation as ``results.yml`` holds it: env id, the policy (model path or scripted
+    name), the ``gym.make`` keywords and wrappers it was played with, the first goal seed, the
+    ``--goals`` file (None: seeded goals), the summary of :func:`evaluate` and the episode
+    records (without their trajectories)."""
+
+    env_id: str
+    policy: str
+    env_kwargs: dict[str, Any]
+    env_wrapper: Any
+    seed: int
+    goals_file: str | None
+    summary: dict[str, float]
+    episodes: list[dict[str, Any]]
+
+    def to_yaml(self) -> dict[str, Any]:
+        """The mapping written to ``results.yml`` (keys in field order)."""
+        return {
+            "env_id": self.env_id,
+            "policy": self.policy,
+            "env_kwargs": self.env_kwargs,
+            "env_wrapper": self.env_wrapper,
+            "seed": self.seed,
+            "goals_file": self.goals_file,
+            "summary": self.summary,
+            "episodes": [{k: v for k, v in ep.items() if k not in TRAJECTORY_KEYS}
+                         for ep in self.episodes],
+        }

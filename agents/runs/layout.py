@@ -1,0 +1,33 @@
+"""The on-disk layout of a run and the names of its files (read by :mod:`agents.runs.loading`,
+written by :mod:`agents.runs.writing`).
+
+A run is laid out as RL Zoo lays out its runs (``rl_zoo3.train`` writes the same, and
+``rl_zoo3.enjoy -f <log-folder>`` plays ours)::
+
+    <log-folder>/<algo>/<env_id>_<k>/
+        <env_id>.zip                  final model (SB3 zip)
+        <env_id>/config.yml           hyper-parameters (the zoo's OrderedDict YAML); ours add a
+                                      ``softhand`` entry: env signature, seed, validation
+                                      results, versions and the sha256 of every model file
+        <env_id>/args.yml             command-line arguments (the zoo's; env_kwargs)
+        <env_id>/vecnormalize.npz     observation statistics as plain arrays (read here)
+        <env_id>/vecnormalize.pkl     the same as SB3 pickles it (read by rl_zoo3 only)
+        best_model.zip                best on the validation goals (+ best_model_vecnormalize.*)
+        rl_model_<n>_steps.zip        checkpoints (+ rl_model_vecnormalize_<n>_steps.*)
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+#: Shipped models (installed with the package), laid out as RL Zoo runs.
+MODELS_DIR = Path(__file__).resolve().parent.parent / "models"
+#: Files of a run's parameter directory ``<run>/<env id>/``.
+CONFIG_FILE = "config.yml"
+ARGS_FILE = "args.yml"
+STATS_NPZ = "vecnormalize.npz"
+STATS_PKL = "vecnormalize.pkl"
+#: Key of our run record inside the zoo's ``config.yml``.
+RECORD_KEY = "softhand"
+#: Best model of a run.
+BEST_MODEL = "best_model"

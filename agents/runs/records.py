@@ -1,0 +1,152 @@
+"""Typed run config and run record: what ``agents.train`` and ``agents.distill`` save with a run.
+
+A run's ``<env id>/config.yml`` (:mod:`agents.runs.layout`) is the hyper-parameter entry in
+RL Zoo's dialect plus our record under ``softhand``. In memory the pair is a :class:`RunConfig`:
+``hyperparams`` stays the YAML entry (a mapping, as RL Zoo reads and writes it; its keys that
+the trainers consume are read through typed properties), ``record`` is a :class:`RunRecord`.
+:meth:`RunRecord.to_yaml` is the one place the record becomes a mapping again, for
+``config.yml``; reading a saved run (:mod:`agents.runs.loading`) keeps the mapping, since runs
+of ``rl_zoo3.train`` and older runs carry other or fewer keys.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass
+from typing import Any
+
+
+@dataclass
+class EvalSettings:
+    """Validation during training (``record["eval"]``): every ``eval_freq`` env steps (<= 0:
+    never) the ``n_eval_episodes`` goals ``reset(seed=eval_seed + k)`` are played with the
+    benchmark's tolerance (``success_kwargs``, env keywords); training stops once the success
+    rate reaches ``stop_success`` (None: never)."""
+
+    eval_freq: int
+    n_eval_episodes: int
+    eval_seed: int
+    success_kwargs: dict[str, float]
+    stop_success: float | None
+
+
+@dataclass
+class TrainOutcome:
+    """How an ``agents.train`` run ended: wall time (s) of ``learn``, env steps done, whether it
+    was interrupted (Ctrl-C), the env step at which the validation success stopped it (None:
+    it did not) and the best validation summary (None: no validation ran)."""
+
+    wall_time_s: float
+    total_timesteps: int
+    interrupted: bool
+    stopped_on_success_at: int | None
+    best_validation: dict[str, float] | None = None
+
+    def to_yaml(self) -> dict[str, Any]:
+        """The record keys of the outcome (``best_validation`` only when there is one)."""
+        out = dataclasses.asdict(self)
+        if self.best_validation is None:
+            out.pop("best_validation")
+        return out
+
+
+@dataclass
+class DistillOutcome:
+    """How an ``agents.distill`` run ended: the teacher's provenance (path, sha256, wall time,
+    steps), the DAgger schedule, wall time (s), env steps of the rollouts and the best
+    iteration's validation summary."""
+
+    teacher: dict[str, Any]
+    dagger: dict[str, Any]
+    wall_time_s: float
+    total_timesteps: int
+    best_validation: dict[str, float]
+    trainer: str = "dagger"
+
+    def to_yaml(self) -> dict[str, Any]:
+        """The record keys of the outcome."""
+        return dataclasses.asdict(self)
+
+
+@dataclass
+class RunRecord:
+    """Our record of a run (``config.yml``'s ``softhand`` entry).
+
+    Set before training: algorithm, env id, seed, hyper-parameter file, the command-line
+    overrides (``env_kwargs``, ``hyperparams``, ``n_timesteps``), checkpoint period (env
+    steps), validation settings, torch device and threads, vectorisation, package versions,
+    the command and its start time (ISO 8601, UTC); ``trained_agent``: provenance of the model
+    the run started from (None: fresh weights); ``env_signature``: the env's signature
+    (``softhand_env.envs.signature``), checked when the model is loaded. ``outcome``: set
+    when the run ends.
+    """
+
+    algo: str
+    env_id: str
+    seed: int
+    conf_file: str
+    overrides: dict[str, Any]
+    save_freq: int
+    eval: EvalSettings
+    device: str
+    torch_threads: int
+    vec_env: str
+    versions: dict[str, str]
+    command: str
+    started: str
+    trained_agent: dict[str, Any] | None = None
+    env_signature: dict[str, Any] | None = None
+    outcome: TrainOutcome | DistillOutcome | None = None
+
+    def to_yaml(self) -> dict[str, Any]:
+        """The record as ``config.yml`` holds it (plain YAML values; ``env_signature`` only
+        once set, the outcome's keys at the top level)."""
+        out = {f.name: getattr(self, f.name) for f in dataclasses.fields(self)
+               if f.name not in ("eval", "env_signature", "outcome")}
+        out["eval"] = dataclasses.asdict(self.eval)
+        if self.env_signature is not None:
+            out["env_signature"] = self.env_signature
+        if self.outcome is not None:
+            out.update(self.outcome.to_yaml())
+        return out
+
+
+@dataclass
+class RunConfig:
+    """A run's configuration: the hyper-parameter entry (RL Zoo's dialect, merged with the
+    command-line overrides; the YAML boundary) and our :class:`RunRecord`."""
+
+    hyperparams: dict[str, Any]
+    record: RunRecord
+
+    @property
+    def n_envs(self) -> int:
+        """Training envs."""
+        return int(self.hyperparams["n_envs"])
+
+    @property
+    def n_timesteps(self) -> int:
+        """Env steps to train."""
+        return int(self.hyperparams["n_timesteps"])
+
+    @property
+    def env_kwargs(self) -> dict[str, Any]:
+        """``gym.make`` keywords of the run."""
+        kwargs: dict[str, Any] = self.hyperparams["env_kwargs"]
+        return kwargs
+
+    @property
+    def env_wrapper(self) -> Any:
+        """The ``env_wrapper`` entry (None, a dotted path or a list; see
+        :func:`agents.common.env_factory.wrapper_list`)."""
+        return self.hyperparams.get("env_wrapper")
+
+    @property
+    def normalize(self) -> Any:
+        """The ``normalize`` entry (false, true or VecNormalize keywords)."""
+        return self.hyperparams["normalize"]
+
+    @property
+    def policy(self) -> str:
+        """The policy name (``MlpPolicy``, ``AsymmetricPolicy``, ...)."""
+        return str(self.hyperparams["policy"])
