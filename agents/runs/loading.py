@@ -24,6 +24,7 @@ import numpy as np
 
 from agents.common.cli import UserError
 from agents.common.env_factory import make_env
+from agents.runs.hyperparams import ALGOS, algo_class, normalize_kwargs
 from agents.runs.layout import (
     ARGS_FILE,
     BEST_MODEL,
@@ -32,7 +33,6 @@ from agents.runs.layout import (
     RECORD_KEY,
     STATS_NPZ,
 )
-from agents.runs.hyperparams import ALGOS, algo_class, normalize_kwargs
 from agents.runs.model_files import ModelFileError, check_sha256, load_sb3
 from agents.runs.normalization import ObsNormalizer
 from agents.runs.zoo_dialect import zoo_yaml_load

@@ -1,4 +1,5 @@
-"""Writing a run in RL Zoo's layout (:mod:`agents.runs.layout`; reading: :mod:`agents.runs.loading`).
+"""Writing a run in RL Zoo's layout (:mod:`agents.runs.layout`; reading:
+:mod:`agents.runs.loading`).
 
 :func:`save_vecnormalize` writes observation statistics twice: ``.npz`` (plain arrays, what
 :mod:`agents.runs.loading` reads) and ``.pkl`` (SB3's pickle, what ``rl_zoo3.enjoy`` reads).
