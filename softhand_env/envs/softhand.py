@@ -212,10 +212,10 @@ class SoftHandEnv(gym.Env):
     Friction), ``contact_impulse`` (J_n1, J_n2, J_t1, J_t2 of the step; N s), ``tension``
     (bool (2,), J_n < 0), the contact keys 0 / False at reset, ``contact_validated`` (bool
     (2,): the fingertip is inside the range where the contact model was validated by the
-    paper's compression tests, d_n <= 8 mm and |theta_p| <= 30 deg; outside it, up to the hard limits that end the episode (over-compression at
-    a/2, the fingertip base), the model extrapolates), the reward terms (0 at reset),
-    ``goal`` (SI, goal tasks) and ``termination_reason``: None while
-    the episode runs (at reset, on every step that does not terminate, and on a step that is
+    paper's compression tests, d_n <= 8 mm and |theta_p| <= 30 deg; outside it, up to the
+    hard limits that end the episode (over-compression at a/2, the fingertip base), the model
+    extrapolates), the reward terms (0 at reset), ``goal`` (SI, goal tasks) and
+    ``termination_reason``: None while the episode runs (at reset, on every step that does not terminate, and on a step that is
     only truncated), else the failure of the list above or ``"success"``. The native vector
     env reports the same values batched (``info["termination_reason"]`` an object array with
     None for the running environments).
