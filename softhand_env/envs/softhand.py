@@ -215,9 +215,9 @@ class SoftHandEnv(gym.Env):
     paper's compression tests, d_n <= 8 mm and |theta_p| <= 30 deg; outside it, up to the
     hard limits that end the episode (over-compression at a/2, the fingertip base), the model
     extrapolates), the reward terms (0 at reset), ``goal`` (SI, goal tasks) and
-    ``termination_reason``: None while the episode runs (at reset, on every step that does not terminate, and on a step that is
-    only truncated), else the failure of the list above or ``"success"``. The native vector
-    env reports the same values batched (``info["termination_reason"]`` an object array with
+    ``termination_reason``: None while the episode runs (at reset, on every step that does
+    not terminate, and on a step that is only truncated), else the failure of the list above
+    or ``"success"``. The native vector env reports the same values batched (``info["termination_reason"]`` an object array with
     None for the running environments).
 
     ## Arguments
