@@ -217,8 +217,8 @@ class SoftHandEnv(gym.Env):
     extrapolates), the reward terms (0 at reset), ``goal`` (SI, goal tasks) and
     ``termination_reason``: None while the episode runs (at reset, on every step that does
     not terminate, and on a step that is only truncated), else the failure of the list above
-    or ``"success"``. The native vector env reports the same values batched (``info["termination_reason"]`` an object array with
-    None for the running environments).
+    or ``"success"``. The native vector env reports the same values batched
+    (``info["termination_reason"]`` an object array with None for the running environments).
 
     ## Arguments
 
