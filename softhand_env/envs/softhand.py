@@ -225,7 +225,7 @@ class SoftHandEnv(gym.Env):
     Every argument is a ``gym.make(id, **kwargs)`` keyword (the same for
     ``gym.make_vec(id, num_envs=N, vectorization_mode="vector_entry_point", **kwargs)``).
     ``None`` for a task keyword means the value in ``configs/tasks/<task>.yaml``; a task
-    rejects keywords it does not use. Every numeric keyword has a finite range (column Range;
+    rejects keywords it does not use. Every numeric keyword has a range (column Range;
     ``(`` / ``)`` exclude the end), checked before anything is allocated or run
     (``ValueError`` naming the keyword, the value and its range); the values in the task
     configs are checked the same way. Every reward is finite within them. The table is
