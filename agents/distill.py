@@ -325,6 +325,17 @@ class DelayedLabels:
         self._now += 1
 
 
+def step_latencies(infos: Sequence[dict[str, Any]]) -> np.ndarray:
+    """The set-point latency (control steps) of the episode each env took its step in, int64
+    (N,), from the step's SB3 infos (``info["setpoint_latency"]``; the info of an episode's
+    last step still belongs to it), so any VecEnv of soft-hand envs serves."""
+    try:
+        return np.array([info["setpoint_latency"] for info in infos], dtype=np.int64)
+    except KeyError:
+        raise UserError("--latency-labels needs info['setpoint_latency'] in every step's "
+                        "info (a soft-hand environment)") from None
+
+
 def lr_at(k: int, iterations: int, lr: float, lr_final: float) -> float:
     """Adam step size at iteration ``k`` of ``iterations``: linear from ``lr`` (k = 0) to
     ``lr_final`` (k = iterations - 1)."""
@@ -377,13 +388,13 @@ def dagger(model: Any, teacher: ModelPolicy, env_id: str, kwargs: dict[str, Any]
             t_obs = teacher_view(obs, t_layout, s_layout, t_size)
             t_act, _ = teacher.model.predict(teacher.normalize(t_obs), deterministic=True)
             blind = obs[BLIND_KEY].astype(np.float32)
-            latency = venv.get_attr("latencies")[0] if delayed else no_latency
+            s_act, _ = model.predict(blind, deterministic=True)
+            use_teacher = rng.random(n_envs) < beta
+            obs, _, dones, infos = venv.step(np.where(use_teacher[:, None], t_act, s_act))
+            latency = step_latencies(infos) if delayed else no_latency
             x, y = labels.step(blind, np.asarray(t_act, dtype=np.float32), latency)
             xs.append(x)
             ys.append(y)
-            s_act, _ = model.predict(blind, deterministic=True)
-            use_teacher = rng.random(n_envs) < beta
-            obs, _, dones, _ = venv.step(np.where(use_teacher[:, None], t_act, s_act))
             labels.end_step(dones)
             steps += n_envs
         total = sum(len(x) for x in xs)

@@ -5,7 +5,6 @@ from __future__ import annotations
 from pathlib import Path
 from types import SimpleNamespace
 
-import gymnasium as gym
 import numpy as np
 import pytest
 import torch
@@ -194,11 +193,43 @@ def test_delayed_labels_pair_a_state_with_the_teacher_action_when_its_command_ac
     # episode's steps 1 and 2 (it ended first); its next episode's step 3 is due at step 5
     assert got == [[(0, 0)], [(0, 11), (1, 10)], [(0, 22), (1, 21), (2, 20)],
                    [(2, 31), (3, 30)], [(3, 41), (4, 40)]]
-    # the latencies the labels use are the vector env's draws
-    env = gym.make_vec("SoftHandPoseRandom-v0", num_envs=16,
-                       vectorization_mode="vector_entry_point")
-    env.reset(seed=list(range(16)))
-    assert env.latencies.dtype == np.int64 and set(env.latencies) == {0, 1}
+
+
+def test_latency_labels_read_each_episodes_latency_from_the_step_infos_of_any_vec_env():
+    """--latency-labels takes the latency from the step infos: an SB3 DummyVecEnv of single
+    envs gives the native vector env's latencies (episode ends included), and the labels pair
+    a state with the teacher action of its step + that episode's latency."""
+    n, kw = 8, {"max_episode_steps": 3}
+    dummy = make_sb3_vec_env("SoftHandPoseRandom-v0", n, 0, kw, "dummy")
+    native = make_sb3_vec_env("SoftHandPoseRandom-v0", n, 0, kw, "native")
+    dummy.reset()
+    native.reset()
+    first = np.array([info["setpoint_latency"] for info in dummy.reset_infos])
+    labels, episode_latency = distill.DelayedLabels(n), {}
+    episode = np.zeros(n, dtype=int)
+    pairs = []
+    for t in range(9):
+        _, _, dones, infos = dummy.step(np.zeros((n, 2), np.float32))
+        _, _, native_dones, native_infos = native.step(np.zeros((n, 2), np.float32))
+        latency = distill.step_latencies(infos)
+        assert latency.dtype == np.int64 and latency.shape == (n,)
+        np.testing.assert_array_equal(latency, distill.step_latencies(native_infos))
+        np.testing.assert_array_equal(dones, native_dones)
+        if t == 0:
+            np.testing.assert_array_equal(latency, first)  # the reset's draw
+        for i in range(n):
+            episode_latency[i, episode[i]] = int(latency[i])
+        blind = np.stack([np.full(n, t), np.arange(n), episode], axis=1).astype(np.float32)
+        x, y = labels.step(blind, (100 * t + np.arange(n, dtype=np.float32))[:, None], latency)
+        pairs += list(zip(x.tolist(), y[:, 0].tolist(), strict=True))
+        labels.end_step(dones)
+        episode += dones
+    assert {v for v in episode_latency.values()} == {0, 1} and episode.min() >= 2
+    assert pairs
+    for (step, env, ep), label in pairs:  # the teacher's action at step + L, same env
+        assert label == 100 * (step + episode_latency[int(env), int(ep)]) + env
+    with pytest.raises(UserError, match="setpoint_latency"):
+        distill.step_latencies([{}])
 
 
 def test_student_with_further_wrappers_feeds_the_teacher_without_their_features(tmp_path,

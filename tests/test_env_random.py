@@ -114,7 +114,8 @@ def _rollout(make, n, steps, seed=5):
     for _ in range(steps):
         a = rng.uniform(-1, 1, (n, 2)).astype(np.float32)
         obs, reward, term, trunc, info = make.step(a if n > 1 else a[0])
-        out += [obs, reward, term, trunc, info["setpoint"], info["object_pose"]]
+        out += [obs, reward, term, trunc, info["setpoint"], info["object_pose"],
+                info["setpoint_latency"]]
         if n == 1 and (term or trunc):
             out.append(make.reset()[0])
     return out
@@ -128,7 +129,34 @@ def test_latency_single_and_vector_env_agree_bit_for_bit():
     a, b = _rollout(vec, 3, 20), _rollout(sync, 3, 20)
     for x, y in zip(a, b, strict=True):
         np.testing.assert_array_equal(np.asarray(x), np.asarray(y))
-    assert set(vec.unwrapped._batch.latency.tolist()) <= {0, 1}
+    _, info = vec.reset(seed=5)
+    assert set(info["setpoint_latency"].tolist()) <= {0, 1}
+
+
+def test_setpoint_latency_is_in_every_info_of_the_single_and_the_vector_env():
+    """The episode's latency travels in info like every other per-episode value: row i of
+    the vector env's infos is single env i (seeded s + i), at resets and autoresets."""
+    n, kw = 6, {"setpoint_latency": 1, "max_episode_steps": 3}
+    vec = gym.make_vec("SoftHandReorient-v0", num_envs=n,
+                       vectorization_mode="vector_entry_point", **kw)
+    singles = [gym.make("SoftHandReorient-v0", **kw) for _ in range(n)]
+    _, info = vec.reset(seed=3)
+    rows = [env.reset(seed=3 + i)[1]["setpoint_latency"] for i, env in enumerate(singles)]
+    assert info["setpoint_latency"].dtype == np.int64 and info["_setpoint_latency"].all()
+    assert info["setpoint_latency"].tolist() == rows and all(type(r) is int for r in rows)
+    seen = set(rows)
+    pending = [False] * n
+    for _ in range(8):  # NextStep autoreset: the step after an episode end resets
+        _, _, term, trunc, info = vec.step(np.zeros((n, 2), np.float32))
+        for i, env in enumerate(singles):
+            if pending[i]:
+                single = env.reset()[1]["setpoint_latency"]
+            else:
+                single = env.step(np.zeros(2, np.float32))[4]["setpoint_latency"]
+            assert info["setpoint_latency"][i] == single
+            seen.add(single)
+        pending = list(term | trunc)
+    assert seen == {0, 1}
 
 
 def test_latency_delays_the_commanded_setpoints():
@@ -138,11 +166,12 @@ def test_latency_delays_the_commanded_setpoints():
     seen = set()
     for seed in range(12):
         _, info = env.reset(seed=seed)
-        latency = int(env._batch.latency[0])
+        latency = info["setpoint_latency"]
         seen.add(latency)
         a0, a1 = np.array([0.5, -0.25], np.float32), np.array([-1.0, 1.0], np.float32)
         info0 = env.step(a0)[4]
         info1 = env.step(a1)[4]
+        assert info0["setpoint_latency"] == info1["setpoint_latency"] == latency
         u0 = grasp + a0.astype(np.float64) * step
         u1 = u0 + a1.astype(np.float64) * step
         if latency == 0:

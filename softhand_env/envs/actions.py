@@ -24,7 +24,9 @@ import numpy as np
 from gymnasium import spaces
 from numba import njit
 
-ACTION_MODES = ("delta", "absolute")
+from softhand_env.envs.options import KEYWORDS, check_keyword
+
+ACTION_MODES = KEYWORDS["action_mode"].choices
 
 
 class ActionMap:
@@ -50,17 +52,16 @@ class ActionMap:
         max_delta_deg: float,
         joint_range_deg: Sequence[float],
     ):
-        if action_mode not in ACTION_MODES:
-            raise ValueError(f"action_mode must be one of {ACTION_MODES} (got {action_mode!r})")
+        check_keyword("action_mode", action_mode)
         if not normalize_action and action_mode != "absolute":
             raise ValueError('normalize_action=False requires action_mode="absolute"')
-        if not (math.isfinite(max_delta_deg) and max_delta_deg > 0):
-            raise ValueError(f"max_delta_deg must be finite and > 0 (got {max_delta_deg!r})")
+        check_keyword("max_delta_deg", max_delta_deg)
+        check_keyword("joint_range_deg", joint_range_deg)
         lo, hi = (float(v) for v in joint_range_deg)
-        if not (math.isfinite(lo) and math.isfinite(hi) and -90.0 < lo < hi < 90.0):
+        if not lo < hi:
             raise ValueError(
-                f"joint_range_deg must be (low, high) with -90 < low < high < 90 (got "
-                f"{tuple(joint_range_deg)!r})"
+                f"joint_range_deg must be (low, high) with low < high, each in "
+                f"{KEYWORDS['joint_range_deg'].range_text} (got {tuple(joint_range_deg)!r})"
             )
         self.mode = action_mode
         self.normalize = bool(normalize_action)

@@ -30,6 +30,8 @@ import numpy as np
 from gymnasium import spaces
 from numba import njit
 
+from softhand_env.envs.options import KEYWORDS, check_keyword
+
 #: Angles (rad) are divided by this (30 deg).
 ANGLE_SCALE = math.radians(30.0)
 #: Joint velocities (rad/s) are divided by this.
@@ -47,7 +49,7 @@ POSITION_SCALE = 0.03
 OBS_BOUND = 100.0
 
 #: Largest ``history_len`` (frames): bounds the observation size before anything is allocated.
-MAX_HISTORY = 100
+MAX_HISTORY = int(KEYWORDS["history_len"].high)
 
 PROPRIO_NAMES = (
     "theta_1",
@@ -60,7 +62,7 @@ PROPRIO_NAMES = (
     "torque_2",
 )
 TACTILE_NAMES = ("d_n1", "d_n2", "d_t1", "d_t2")
-OBS_MODES = ("proprio", "proprio_tactile")
+OBS_MODES = KEYWORDS["obs_mode"].choices
 
 
 @njit(cache=True)
@@ -118,14 +120,8 @@ class ObservationLayout:
     """
 
     def __init__(self, obs_mode: str, history_len: int, goal_names: tuple[str, ...]):
-        if obs_mode not in OBS_MODES:
-            raise ValueError(f"obs_mode must be one of {OBS_MODES} (got {obs_mode!r})")
-        if isinstance(history_len, bool) or not isinstance(history_len, (int, np.integer)):
-            raise ValueError(
-                f"history_len must be an int in [1, {MAX_HISTORY}] (got {history_len!r})"
-            )
-        if not 1 <= history_len <= MAX_HISTORY:
-            raise ValueError(f"history_len must be in [1, {MAX_HISTORY}] (got {history_len!r})")
+        check_keyword("obs_mode", obs_mode)
+        check_keyword("history_len", history_len)
         self.tactile = obs_mode == "proprio_tactile"
         self.history_len = int(history_len)
         frame = PROPRIO_NAMES + (TACTILE_NAMES if self.tactile else ())

@@ -22,7 +22,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from softhand_env.physics.params import HandParams, is_finite_real, range_text
+from softhand_env.envs.options import check_keyword
+from softhand_env.physics.params import HandParams, range_text
 from softhand_env.physics.stability import check_randomization_ranges
 
 #: rand_* keyword -> HandParams fields it scales (together, by one factor).
@@ -74,9 +75,7 @@ class Randomization:
                 raise TypeError(f"unknown randomisation keyword {key!r}")
             if value is None:
                 value = PRESET[key] if randomize else 0.0
-            high = 1.0 if key != "obs_noise" else 10.0
-            if not (is_finite_real(value) and 0.0 <= value < high):
-                raise ValueError(f"{key} must be a number in [0, {high}) (got {value!r})")
+            check_keyword(key, value)
             out[key] = float(value)
         return cls(**out)
 

@@ -10,7 +10,7 @@ import numpy as np
 from softhand_env.envs.actions import action_array
 from softhand_env.envs.config import RENDER_MODES, build_config
 from softhand_env.envs.observation import observe_rows
-from softhand_env.envs.options import EnvOptions
+from softhand_env.envs.options import KEYWORDS, EnvOptions, arguments_table
 from softhand_env.envs.transition import EpisodeBatch, reset_goal
 from softhand_env.physics.hand import HandPhysics
 
@@ -207,76 +207,32 @@ class SoftHandEnv(gym.Env):
     ``deformation`` (d_n1, d_n2, d_t1, d_t2; m), ``constraint_error`` (max |C^H| in m, max
     |C^N| in m/s over the step; at reset: at the start state), ``grasped`` (both d_n > 0, state
     valid), ``is_success``, ``setpoint`` (rad), ``physics_flags`` (kernel status bits),
-    ``friction_ratio`` (shape (2,), see Friction), ``contact_impulse`` (J_n1, J_n2, J_t1,
-    J_t2 of the step; N s), ``tension`` (bool (2,), J_n < 0), the contact keys 0 / False at
-    reset, ``contact_validated`` (bool (2,): the fingertip is inside the range where the
-    contact model was validated by the paper's compression tests, d_n <= 8 mm and |theta_p|
-    <= 30 deg; outside it, up to the hard limits that end the episode (over-compression at
-    a/2, the fingertip base), the model extrapolates), the reward terms (0 at reset),
-    ``goal`` (SI, goal tasks) and ``termination_reason``: None while
-    the episode runs (at reset, on every step that does not terminate, and on a step that is
-    only truncated), else the failure of the list above or ``"success"``. The native vector
-    env reports the same values batched (``info["termination_reason"]`` an object array with
-    None for the running environments).
+    ``setpoint_latency`` (the episode's set-point latency in control steps, an int drawn at
+    reset; 0 without the keyword ``setpoint_latency``), ``friction_ratio`` (shape (2,), see
+    Friction), ``contact_impulse`` (J_n1, J_n2, J_t1, J_t2 of the step; N s), ``tension``
+    (bool (2,), J_n < 0), the contact keys 0 / False at reset, ``contact_validated`` (bool
+    (2,): the fingertip is inside the range where the contact model was validated by the
+    paper's compression tests, d_n <= 8 mm and |theta_p| <= 30 deg; outside it, up to the
+    hard limits that end the episode (over-compression at a/2, the fingertip base), the model
+    extrapolates), the reward terms (0 at reset), ``goal`` (SI, goal tasks) and
+    ``termination_reason``: None while the episode runs (at reset, on every step that does
+    not terminate, and on a step that is only truncated), else the failure of the list above
+    or ``"success"``. The native vector env reports the same values batched
+    (``info["termination_reason"]`` an object array with None for the running environments).
 
     ## Arguments
 
-    Every argument is a ``gym.make(id, **kwargs)`` keyword. ``None`` for a task keyword means
-    the value in ``configs/tasks/<task>.yaml``; a task rejects keywords it does not use.
-    Every numeric keyword has a finite range, checked before anything is allocated or run
-    (``ValueError`` naming the keyword and its range): ``history_len`` [1, 100];
-    ``control_dt`` (0, 1] s and at most 100,000 substeps; ``grasp_duration`` [0, 10] s and at
-    most 1,000,000 substeps; ``max_delta_deg`` [0.001, 30]; ``reset_noise_deg`` [0, 10];
-    ``overcompression_ratio`` [0.001, 1]; ``ch_limit`` [1e-12, 1] m; ``base_tolerance``
-    [0, inf] (inf: off); ``rand_*`` [0, 1); ``obs_noise`` [0, 10); ``setpoint_latency``
-    [0, 10]; reward weights [0, 1e6];
-    ``goal_x_range_mm``, ``x_tolerance_mm`` (0, 100]; ``x_scale_mm`` (0, 1000];
-    ``goal_theta_range_deg``, ``theta_tolerance_deg`` (0, 90]; ``theta_scale_deg`` (0, 360];
-    ``render_width``, ``render_height`` [16, 4096]. Every reward is finite within them.
+    Every argument is a ``gym.make(id, **kwargs)`` keyword (the same for
+    ``gym.make_vec(id, num_envs=N, vectorization_mode="vector_entry_point", **kwargs)``).
+    ``None`` for a task keyword means the value in ``configs/tasks/<task>.yaml``; a task
+    rejects keywords it does not use. Every numeric keyword has a range (column Range;
+    ``(`` / ``)`` exclude the end), checked before anything is allocated or run
+    (``ValueError`` naming the keyword, the value and its range); the values in the task
+    configs are checked the same way. Every reward is finite within them. The table is
+    :func:`softhand_env.envs.options.arguments_table`, generated from the fields of
+    :class:`~softhand_env.envs.options.EnvOptions`.
 
-    | Parameter | Type | Default | Description |
-    |---|---|---|---|
-    | `task` | str | `'none'` | `'none'`, `'reorient'`, `'translate'` or `'pose'` |
-    | `action_mode` | str | `'delta'` | `'delta'` (set-point change) or `'absolute'` |
-    | `normalize_action` | bool | `True` | False (absolute only): action = set-points in rad |
-    | `max_delta_deg` | float | `1.0` | largest set-point change per step (deg); ctrl-cost unit |
-    | `joint_range_deg` | tuple | `(-30.0, 30.0)` | set-point limits (deg) |
-    | `control_dt` | float | `0.02` | control period (s), a multiple of the 0.1 ms substep |
-    | `obs_mode` | str | `'proprio'` | `'proprio'` or `'proprio_tactile'` (adds d_n, d_t) |
-    | `history_len` | int | `1` | number of observation frames, newest first |
-    | `grasp_setpoint_deg` | tuple | `(6.0, 6.0)` | grasp set-points (deg), first set-points |
-    | `grasp_duration` | float | `0.5` | grasp phase in reset (s); 0 = point-contact start |
-    | `reset_noise_deg` | float | `0.0` | half-width of uniform noise on the grasp set-points |
-    | `hand` | str | `'paper_ch5'` | hand config name in `configs/hand/` or a YAML path |
-    | `hand_overrides` | dict | `None` | HandParams fields (SI) replacing config values |
-    | `overcompression_ratio` | float | `0.5` | terminate when d_n >= ratio * a |
-    | `ch_limit` | float | `0.001` | terminate when a holonomic residual exceeds this (m) |
-    | `base_tolerance` | float | `0.05` | allowed overshoot of tan theta_p past the base (inf: off)|
-    | `terminate_on_slip` | bool | `True` | end the episode on slip or tension (False: report only)|
-    | `randomize` | bool | `False` | preset for every `rand_*` / `obs_noise` left at None |
-    | `rand_width` | float | `None` | object width, relative half-width (preset 0.03) |
-    | `rand_mass` | float | `None` | object mass, relative half-width (preset 0.2) |
-    | `rand_inertia` | float | `None` | object inertia, relative half-width (preset 0.2) |
-    | `rand_stiffness` | float | `None` | Young's modulus E, relative half-width (preset 0.1) |
-    | `rand_damping` | float | `None` | c_n and c_t, relative half-width (preset 0.2) |
-    | `rand_gains` | float | `None` | Kp, Kd, Ki, relative half-width (preset 0.1) |
-    | `rand_friction` | float | `None` | friction coefficient mu, relative half-width (preset 0.2) |
-    | `obs_noise` | float | `None` | observation noise std, scaled units (preset 0.01) |
-    | `setpoint_latency` | int | `0` | largest set-point latency (steps), drawn 0..this |
-    | `goal_x_range_mm` | float | `None` | x* ~ U(-r, r) (mm) |
-    | `goal_theta_range_deg` | float | `None` | theta* ~ U(-r, r) (deg) |
-    | `x_tolerance_mm` | float | `None` | success tolerance on x (mm) |
-    | `theta_tolerance_deg` | float | `None` | success tolerance on theta (deg) |
-    | `x_scale_mm` | float | `None` | error scale of reward_goal for x (mm) |
-    | `theta_scale_deg` | float | `None` | error scale of reward_goal for theta (deg) |
-    | `goal_weight` | float | `None` | weight of reward_goal |
-    | `success_weight` | float | `None` | weight of reward_success |
-    | `ctrl_weight` | float | `None` | weight of reward_ctrl |
-    | `failure_weight` | float | `None` | weight of reward_failure |
-    | `terminate_on_success` | bool | `None` | end the episode on success |
-    | `render_mode` | str | `None` | None, `'rgb_array'` or `'human'` |
-    | `render_width` | int | `480` | frame width (px) |
-    | `render_height` | int | `480` | frame height (px) |
+{ARGUMENTS_TABLE}
 
     ## Version History
 
@@ -348,49 +304,8 @@ class SoftHandEnv(gym.Env):
         render_height: int = 480,
     ):
         #: The keywords of this environment (:class:`~softhand_env.envs.options.EnvOptions`).
-        self.options = EnvOptions(
-            task=task,
-            action_mode=action_mode,
-            normalize_action=normalize_action,
-            max_delta_deg=max_delta_deg,
-            joint_range_deg=joint_range_deg,
-            control_dt=control_dt,
-            obs_mode=obs_mode,
-            history_len=history_len,
-            grasp_setpoint_deg=grasp_setpoint_deg,
-            grasp_duration=grasp_duration,
-            reset_noise_deg=reset_noise_deg,
-            hand=hand,
-            hand_overrides=hand_overrides,
-            overcompression_ratio=overcompression_ratio,
-            ch_limit=ch_limit,
-            base_tolerance=base_tolerance,
-            terminate_on_slip=terminate_on_slip,
-            randomize=randomize,
-            rand_width=rand_width,
-            rand_mass=rand_mass,
-            rand_inertia=rand_inertia,
-            rand_stiffness=rand_stiffness,
-            rand_damping=rand_damping,
-            rand_gains=rand_gains,
-            rand_friction=rand_friction,
-            obs_noise=obs_noise,
-            setpoint_latency=setpoint_latency,
-            goal_x_range_mm=goal_x_range_mm,
-            goal_theta_range_deg=goal_theta_range_deg,
-            x_tolerance_mm=x_tolerance_mm,
-            theta_tolerance_deg=theta_tolerance_deg,
-            x_scale_mm=x_scale_mm,
-            theta_scale_deg=theta_scale_deg,
-            goal_weight=goal_weight,
-            success_weight=success_weight,
-            ctrl_weight=ctrl_weight,
-            failure_weight=failure_weight,
-            terminate_on_success=terminate_on_success,
-            render_mode=render_mode,
-            render_width=render_width,
-            render_height=render_height,
-        )
+        given = locals()
+        self.options = EnvOptions(**{name: given[name] for name in KEYWORDS})
         cfg = build_config(self.options)
         self.config = cfg
         self.task = cfg.task
@@ -495,3 +410,8 @@ class SoftHandEnv(gym.Env):
         from softhand_env.envs.keys import keys_to_action
 
         return keys_to_action(self.config.actions.mode)
+
+
+SoftHandEnv.__doc__ = (SoftHandEnv.__doc__ or "").replace(
+    "{ARGUMENTS_TABLE}", arguments_table("markdown", indent=4)
+)

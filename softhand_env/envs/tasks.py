@@ -33,6 +33,7 @@ from typing import Any
 import numpy as np
 
 from softhand_env.envs.observation import ANGLE_SCALE, OBS_BOUND, POSITION_SCALE
+from softhand_env.envs.options import check_keyword
 from softhand_env.envs.task_configs import TASK_TARGETS, load_task_config
 from softhand_env.physics.params import is_finite_real
 
@@ -54,18 +55,6 @@ TASK_KWARGS = (
 #: Indices of x (m) and theta (rad) in an object pose (x, y, theta).
 POSE_X = 0
 POSE_THETA = 2
-
-#: Upper bound of every reward weight: with max_delta_deg >= 1e-3 every reward stays finite.
-MAX_WEIGHT = 1e6
-#: Upper bounds (exclusive lower bound 0) of the goal-task keywords, in their units (mm, deg).
-TARGET_RANGES = {
-    "goal_x_range_mm": 100.0,
-    "x_tolerance_mm": 100.0,
-    "x_scale_mm": 1000.0,
-    "goal_theta_range_deg": 90.0,
-    "theta_tolerance_deg": 90.0,
-    "theta_scale_deg": 360.0,
-}
 
 #: Reward term names of goal tasks, in summation order.
 GOAL_TERMS = ("reward_goal", "reward_success", "reward_ctrl", "reward_failure")
@@ -179,8 +168,7 @@ class GoalTask(Task):
             ("ctrl_weight", ctrl_weight),
             ("failure_weight", failure_weight),
         ):
-            if not (is_finite_real(value) and 0 <= value <= MAX_WEIGHT):
-                raise ValueError(f"{key} must be a number in [0, {MAX_WEIGHT:g}] (got {value!r})")
+            check_keyword(key, value, allow_none=False)
         self.name = name
         self.targets = tuple(targets)
         self.goal_weight = float(goal_weight)
@@ -258,16 +246,11 @@ def make_task(task: str, **overrides: Any) -> Task:
     if task == "none":
         return NoTask()
 
-    def positive(key: str) -> float:
-        value, high = cfg[key], TARGET_RANGES[key]
-        if not (is_finite_real(value) and 0 < value <= high):
-            raise ValueError(f"{key} must be a number in (0, {high:g}] (got {value!r})")
-        return float(value)
+    for key, value in cfg.items():  # the YAML values and the overrides, with the same checks
+        check_keyword(key, value, allow_none=False)
 
-    if not isinstance(cfg["terminate_on_success"], (bool, np.bool_)):
-        raise ValueError(
-            f"terminate_on_success must be True or False (got {cfg['terminate_on_success']!r})"
-        )
+    def number(key: str) -> float:
+        return float(cfg[key])
 
     targets = []
     for name in TASK_TARGETS[task]:
@@ -276,9 +259,9 @@ def make_task(task: str, **overrides: Any) -> Task:
                 Target(
                     "x",
                     POSE_X,
-                    positive("goal_x_range_mm") * 1e-3,
-                    positive("x_tolerance_mm") * 1e-3,
-                    positive("x_scale_mm") * 1e-3,
+                    number("goal_x_range_mm") * 1e-3,
+                    number("x_tolerance_mm") * 1e-3,
+                    number("x_scale_mm") * 1e-3,
                     POSITION_SCALE,
                 )
             )
@@ -287,9 +270,9 @@ def make_task(task: str, **overrides: Any) -> Task:
                 Target(
                     "theta",
                     POSE_THETA,
-                    math.radians(positive("goal_theta_range_deg")),
-                    math.radians(positive("theta_tolerance_deg")),
-                    math.radians(positive("theta_scale_deg")),
+                    math.radians(number("goal_theta_range_deg")),
+                    math.radians(number("theta_tolerance_deg")),
+                    math.radians(number("theta_scale_deg")),
                     ANGLE_SCALE,
                 )
             )

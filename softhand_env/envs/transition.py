@@ -263,7 +263,7 @@ class EpisodeBatch:
         self.grasped[:] = grasped
         self.success[:] = success
         self.flags[:] = status.flags
-        self.constraint_error[:] = status._diag[:, :2]
+        self.constraint_error[:] = status.constraint_error
         terminated = failed | (self.success & self.task.terminate_on_success)
         self.reason[:] = status.reason
         if cfg.terminate_on_slip and contact.any():
@@ -313,7 +313,8 @@ class EpisodeBatch:
         ``object_pose`` (N, 3) (x, y, theta; m, m, rad), ``deformation`` (N, 4) (d_n1, d_n2,
         d_t1, d_t2; m), ``constraint_error`` (N, 2) (max |C^H| in m, max |C^N| in m/s over the
         step), ``grasped`` (N,), ``is_success`` (N,), ``setpoint`` (N, 2) (rad),
-        ``physics_flags`` (N,) (kernel status bits), ``friction_ratio`` (N, 2) (|J_t| / J_n
+        ``physics_flags`` (N,) (kernel status bits), ``setpoint_latency`` (N,) (int64: each
+        episode's set-point latency in control steps), ``friction_ratio`` (N, 2) (|J_t| / J_n
         per finger over the step; inf where J_n <= 0), ``contact_impulse`` (N, 4) (J_n1, J_n2,
         J_t1, J_t2; N s), ``tension`` (N, 2) (bool: J_n < 0), ``contact_validated`` (N, 2)
         (bool: fingertip inside the contact model's validated box), ``termination_reason`` (N,)
@@ -337,6 +338,7 @@ class EpisodeBatch:
             "is_success": bool(self.success[i]),
             "setpoint": r.setpoint[i],
             "physics_flags": int(self.flags[i]),
+            "setpoint_latency": int(self.latency[i]),
             "friction_ratio": self.friction_ratio[i].copy(),
             "contact_impulse": self.contact_impulse[i].copy(),
             "tension": self.tension[i].copy(),
@@ -367,6 +369,7 @@ class EpisodeBatch:
             "is_success": self.success,
             "setpoint": r.setpoint,
             "physics_flags": self.flags,
+            "setpoint_latency": self.latency,
             "friction_ratio": self.friction_ratio,
             "contact_impulse": self.contact_impulse,
             "tension": self.tension,

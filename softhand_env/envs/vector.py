@@ -25,7 +25,7 @@ from gymnasium.vector.utils import batch_space
 
 from softhand_env.envs.actions import action_array
 from softhand_env.envs.config import build_config
-from softhand_env.envs.options import EnvOptions
+from softhand_env.envs.options import EnvOptions, arguments_table, keyword_signature
 from softhand_env.envs.task_configs import load_task_config
 from softhand_env.envs.transition import EpisodeBatch, reset_goal
 
@@ -48,7 +48,11 @@ class SoftHandVectorEnv(VectorEnv):
     **kwargs
         Keywords of :class:`~softhand_env.envs.SoftHandEnv`, collected in an
         :class:`~softhand_env.envs.options.EnvOptions` (``render_mode`` may be None or
-        ``"rgb_array"``: :meth:`render` returns one frame per environment).
+        ``"rgb_array"``: :meth:`render` returns one frame per environment); the signature
+        of ``__init__`` lists them (``inspect.signature``, ``help``), and this table
+        (:func:`~softhand_env.envs.options.arguments_table`):
+
+{ARGUMENTS_TABLE}
     """
 
     metadata = {
@@ -246,11 +250,6 @@ class SoftHandVectorEnv(VectorEnv):
         """Current goals (SI), shape (N, goal_dim)."""
         return self._batch.goal.copy()
 
-    @property
-    def latencies(self) -> np.ndarray:
-        """Each episode's set-point latency (control steps; ``setpoint_latency``), int64 (N,)."""
-        return self._batch.latency.copy()
-
     def render(self) -> tuple[np.ndarray, ...] | None:
         """One RGB frame per environment (``render_mode="rgb_array"``), else None."""
         if self.render_mode is None:
@@ -272,3 +271,12 @@ class SoftHandVectorEnv(VectorEnv):
 
     def close_extras(self, **kwargs: Any) -> None:
         self._renderer = None
+
+
+SoftHandVectorEnv.__doc__ = (SoftHandVectorEnv.__doc__ or "").replace(
+    "{ARGUMENTS_TABLE}", arguments_table("markdown", indent=4)
+)
+# the keywords in the signature for help() and IDEs that read it at run time
+SoftHandVectorEnv.__init__.__signature__ = keyword_signature(  # type: ignore[attr-defined]
+    SoftHandVectorEnv.__init__
+)

@@ -94,6 +94,8 @@ class StepStatus:
         Largest |C^H| (m) over the visited states (+inf if non-finite in a failed hand).
     max_cn : float or ndarray
         Largest |C^N| (m/s) over the visited states (+inf if non-finite in a failed hand).
+    constraint_error : ndarray, shape (2,) or (N, 2)
+        (max_ch, max_cn) together (a view of the step's diagnostics).
     failed : bool or ndarray of bool
         A physical failure (see :mod:`softhand_env.physics.failure`): the episode must end.
     grasped : bool or ndarray of bool
@@ -152,6 +154,10 @@ class StepStatus:
     @property
     def tension(self) -> np.ndarray:
         return friction.tension(self.impulse)
+
+    @property
+    def constraint_error(self) -> np.ndarray:
+        return self._diag[:, :2] if self._batched else self._diag[0, :2]
 
     @property
     def max_ch(self) -> Any:
