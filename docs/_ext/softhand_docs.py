@@ -38,7 +38,7 @@ HEADING = re.compile(r"^## (.+?)\s*$")
 
 def myst_roles(text: str) -> str:
     """Rewrite reStructuredText roles (``:func:`x```) in MyST syntax (``{func}`x```)."""
-    return ROLE.sub(lambda m: "{py:%s}`%s`" % (m.group(1), m.group(2)), text)
+    return ROLE.sub(lambda m: f"{{py:{m.group(1)}}}`{m.group(2)}`", text)
 
 
 def manual() -> str:
@@ -236,7 +236,8 @@ def widen_simple_tables(lines: list[str]) -> list[str]:
             continue
         indent = m.group(1)
         border = lines[i][len(indent):].rstrip()
-        starts = [k for k, ch in enumerate(border) if ch == "=" and (k == 0 or border[k - 1] == " ")]
+        starts = [k for k, ch in enumerate(border)
+                  if ch == "=" and (k == 0 or border[k - 1] == " ")]
         j, borders = i + 1, [i]
         while j < len(lines) and len(borders) < 3:
             if BORDER.match(lines[j]):
@@ -256,19 +257,16 @@ def widen_simple_tables(lines: list[str]) -> list[str]:
         if not moved:
             out.extend(lines[i:end + 1])
         else:
-            widths = [max([len(border_w) for border_w in _segments(border)][c],
-                          *(len(r[c]) for r in rows if r is not None)) for c in range(len(starts))]
+            widths = [max(len(seg), *(len(r[c]) for r in rows if r is not None))
+                      for c, seg in enumerate(border.split())]
             for r in rows:
                 if r is None:
                     out.append(indent + "  ".join("=" * w for w in widths))
                 else:
-                    out.append(indent + "  ".join(c.ljust(w) for c, w in zip(r, widths)).rstrip())
+                    cells = (c.ljust(w) for c, w in zip(r, widths, strict=True))
+                    out.append(indent + "  ".join(cells).rstrip())
         i = end + 1
     return out
-
-
-def _segments(border: str) -> list[str]:
-    return border.split()
 
 
 BROKEN_ROLE = re.compile(r"(:[a-z:]+:`[^`\s]*)$")
@@ -280,7 +278,8 @@ def join_broken_roles(lines: list[str]) -> list[str]:
     out: list[str] = []
     for line in lines:
         if out and BROKEN_ROLE.search(out[-1]) and line.strip():
-            head, rest = line.strip().split(maxsplit=1) if " " in line.strip() else (line.strip(), "")
+            words = line.strip().split(maxsplit=1)
+            head, rest = words[0], words[1] if len(words) > 1 else ""
             out[-1] = out[-1] + head
             if rest:
                 out.append(line[: len(line) - len(line.lstrip())] + rest)
