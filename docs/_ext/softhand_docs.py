@@ -1,0 +1,317 @@
+"""Sphinx extension: environment pages generated from the environments' own metadata.
+
+Directives (for MyST pages; their output is Markdown parsed in place):
+
+``softhand-env-spec``  ids...
+    the registered spec of each id, read from ``gymnasium.registry`` after ``import
+    softhand_env``: entry points, ``max_episode_steps``, ``reward_threshold`` and the registered
+    keyword arguments.
+``softhand-env-task``  task
+    the task's defaults as :func:`softhand_env.envs.task_configs.load_task_config` loads them.
+``softhand-env-manual``  section
+    one ``## <section>`` of the ``SoftHandEnv`` docstring (the env's manual), without its
+    heading.
+``softhand-env-arguments``
+    the keyword table: ``softhand_env.envs.options.arguments_table()`` where that function
+    exists, else the docstring's ``## Arguments`` section.
+
+The ``SoftHandEnv`` docstring is Markdown (Gymnasium's env-page shape). For the API reference,
+:func:`markdown_docstring` hands it to MyST instead of the reStructuredText parser, its
+``## `` headings as rubrics (a class body cannot hold sections).
+"""
+
+from __future__ import annotations
+
+import hashlib
+import inspect
+import re
+from pathlib import Path
+from typing import Any
+
+from docutils import nodes
+from sphinx.application import Sphinx
+from sphinx.util.docutils import SphinxDirective
+
+ROLE = re.compile(r":(?:py:)?(func|class|data|mod|meth|attr|exc|obj):`([^`]+)`")
+HEADING = re.compile(r"^## (.+?)\s*$")
+
+
+def myst_roles(text: str) -> str:
+    """Rewrite reStructuredText roles (``:func:`x```) in MyST syntax (``{func}`x```)."""
+    return ROLE.sub(lambda m: f"{{py:{m.group(1)}}}`{m.group(2)}`", text)
+
+
+def manual() -> str:
+    """The ``SoftHandEnv`` docstring, dedented."""
+    from softhand_env.envs.softhand import SoftHandEnv
+
+    return inspect.cleandoc(SoftHandEnv.__doc__ or "")
+
+
+def manual_sections(text: str) -> dict[str, str]:
+    """``## <title>`` sections of a Markdown docstring: title -> body (the text before the
+    first heading under the key ``""``)."""
+    sections: dict[str, list[str]] = {"": []}
+    current = ""
+    for line in text.splitlines():
+        m = HEADING.match(line)
+        if m:
+            current = m.group(1)
+            sections[current] = []
+        else:
+            sections[current].append(line)
+    return {k: "\n".join(v).strip() + "\n" for k, v in sections.items()}
+
+
+def manual_section(title: str) -> str:
+    """One section of the env manual; KeyError naming the sections if there is none."""
+    sections = manual_sections(manual())
+    for key, body in sections.items():
+        if key.lower() == title.lower():
+            return body
+    raise KeyError(f"SoftHandEnv docstring has no section {title!r}; it has {list(sections)}")
+
+
+def arguments_markdown() -> str:
+    """The keyword table: from the options record if it renders one, else from the manual."""
+    try:
+        from softhand_env.envs import options
+    except ImportError:  # pragma: no cover - the module exists today
+        options = None  # type: ignore[assignment]
+    render = getattr(options, "arguments_table", None)
+    if callable(render):
+        table = render()
+        if isinstance(table, str) and table.strip():
+            return table
+    return manual_section("Arguments")
+
+
+def _code(value: Any) -> str:
+    return f"`{value!r}`"
+
+
+def spec_markdown(env_ids: list[str]) -> str:
+    """A table of the registered specs of ``env_ids`` (``import softhand_env`` registers)."""
+    import gymnasium as gym
+
+    import softhand_env  # noqa: F401  (registers the ids)
+
+    rows = ["| | " + " | ".join(f"`{i}`" for i in env_ids) + " |",
+            "|---|" + "---|" * len(env_ids)]
+    specs = [gym.spec(i) for i in env_ids]
+    fields = [
+        ("entry point", lambda s: f"`{s.entry_point}`"),
+        ("vector entry point", lambda s: f"`{s.vector_entry_point}`"),
+        ("max_episode_steps", lambda s: _code(s.max_episode_steps)),
+        ("reward_threshold", lambda s: _code(s.reward_threshold)),
+    ]
+    for name, get in fields:
+        rows.append(f"| {name} | " + " | ".join(get(s) for s in specs) + " |")
+    keys = list(dict.fromkeys(k for s in specs for k in s.kwargs))
+    for key in keys:
+        cells = [_code(s.kwargs[key]) if key in s.kwargs else "–" for s in specs]
+        rows.append(f"| kwargs `{key}` | " + " | ".join(cells) + " |")
+    return "\n".join(rows) + "\n"
+
+
+def task_markdown(task: str) -> str:
+    """The defaults of ``configs/tasks/<task>.yaml`` as loaded, one row per keyword."""
+    from softhand_env.envs.task_configs import load_task_config
+
+    config = load_task_config(task)
+    rows = ["| keyword | default |", "|---|---|"]
+    rows += [f"| `{k}` | {_code(v)} |" for k, v in config.items()]
+    return "\n".join(rows) + "\n"
+
+
+class _MarkdownDirective(SphinxDirective):
+    """Parse generated Markdown in place (the page must be a MyST page)."""
+
+    def markdown(self) -> str:
+        raise NotImplementedError
+
+    def run(self) -> list[nodes.Node]:
+        text = myst_roles(self.markdown())
+        container = nodes.container()
+        self.state.nested_parse(text.splitlines(), self.content_offset, container)
+        return container.children
+
+
+class EnvSpec(_MarkdownDirective):
+    required_arguments = 1
+    optional_arguments = 20
+
+    def markdown(self) -> str:
+        return spec_markdown(list(self.arguments))
+
+
+class EnvTask(_MarkdownDirective):
+    required_arguments = 1
+
+    def markdown(self) -> str:
+        return task_markdown(self.arguments[0])
+
+
+class EnvManual(_MarkdownDirective):
+    required_arguments = 1
+    final_argument_whitespace = True
+
+    def markdown(self) -> str:
+        return manual_section(self.arguments[0])
+
+
+class EnvArguments(_MarkdownDirective):
+    def markdown(self) -> str:
+        return arguments_markdown()
+
+
+def markdown_docstring(app: Sphinx, what: str, name: str, obj: Any, options: Any,
+                       lines: list[str]) -> None:
+    """autodoc hook: a docstring written in Markdown (``## `` headings and pipe tables) is
+    parsed by MyST (through a generated file under ``_autosummary/_markdown``)."""
+    text = "\n".join(lines)
+    if not (re.search(r"^## \S", text, flags=re.M) and re.search(r"^\|.*\|$", text, re.M)):
+        return
+    body = "\n".join(HEADING.sub(lambda m: f"```{{rubric}} {m.group(1)}\n```", ln)
+                     for ln in text.splitlines())
+    folder = Path(app.srcdir) / "_autosummary" / "_markdown"
+    folder.mkdir(parents=True, exist_ok=True)
+    path = folder / f"{name}.{hashlib.sha1(body.encode()).hexdigest()[:8]}.md.txt"
+    if not path.exists():
+        path.write_text(myst_roles(body))
+    rel = path.relative_to(app.srcdir).as_posix()
+    lines[:] = [f".. include:: /{rel}", "   :parser: myst_parser.sphinx_", ""]
+
+
+def setup(app: Sphinx) -> dict[str, Any]:
+    app.add_directive("softhand-env-spec", EnvSpec)
+    app.add_directive("softhand-env-task", EnvTask)
+    app.add_directive("softhand-env-manual", EnvManual)
+    app.add_directive("softhand-env-arguments", EnvArguments)
+    app.connect("autodoc-process-docstring", markdown_docstring, priority=300)
+    # before napoleon and sphinx-autodoc-typehints (500), which parse the text themselves
+    app.connect("autodoc-process-docstring", rst_repairs, priority=400)
+    return {"version": "1", "parallel_read_safe": True, "parallel_write_safe": True}
+
+
+# --- reStructuredText repairs of docstrings written as plain text ---------------------------
+
+BORDER = re.compile(r"^(\s*)=+(?: +=+)+\s*$")
+UNDERLINE = re.compile(r"^(\s*)([-=~^\"'`#*+])\2{2,}\s*$")
+LITERAL = re.compile(r"(``.+?``|`[^`]+`_?)")
+
+
+def escape_bars(line: str) -> str:
+    """``|x - x*|`` in prose is an absolute value, not a substitution: escape its bars, outside
+    inline literals and roles."""
+    parts = LITERAL.split(line)
+    return "".join(p if i % 2 else p.replace("|", "\\|") for i, p in enumerate(parts))
+
+
+def _cells(line: str, starts: list[int]) -> tuple[list[str], bool]:
+    """Split a simple-table row at the column starts; a cell whose text runs into the next
+    column's margin pushes that boundary to the end of its word. Returns (cells, moved)."""
+    bounds = list(starts)
+    moved = False
+    for j in range(1, len(bounds)):
+        b = max(bounds[j], bounds[j - 1] + 1)
+        while b < len(line) and line[b - 1] != " ":
+            b += 1
+        moved |= b != bounds[j]
+        bounds[j] = b
+    bounds.append(max(len(line), bounds[-1]))
+    return [line[bounds[j]:bounds[j + 1]].strip() for j in range(len(starts))], moved
+
+
+def widen_simple_tables(lines: list[str]) -> list[str]:
+    """Rebuild simple tables whose text runs into a column margin (docutils: "Malformed
+    table"), with every column as wide as its widest cell."""
+    out: list[str] = []
+    i = 0
+    while i < len(lines):
+        m = BORDER.match(lines[i])
+        if not m:
+            out.append(lines[i])
+            i += 1
+            continue
+        indent = m.group(1)
+        border = lines[i][len(indent):].rstrip()
+        starts = [k for k, ch in enumerate(border)
+                  if ch == "=" and (k == 0 or border[k - 1] == " ")]
+        j, borders = i + 1, [i]
+        while j < len(lines) and len(borders) < 3:
+            if BORDER.match(lines[j]):
+                borders.append(j)
+            elif not lines[j].strip() and len(borders) == 2:
+                break
+            j += 1
+        end = borders[-1]
+        rows, moved = [], False
+        for k in range(i, end + 1):
+            if k in borders:
+                rows.append(None)
+                continue
+            cells, mv = _cells(lines[k][len(indent):], starts)
+            moved |= mv
+            rows.append(cells)
+        if not moved:
+            out.extend(lines[i:end + 1])
+        else:
+            widths = [max(len(seg), *(len(r[c]) for r in rows if r is not None))
+                      for c, seg in enumerate(border.split())]
+            for r in rows:
+                if r is None:
+                    out.append(indent + "  ".join("=" * w for w in widths))
+                else:
+                    cells = (c.ljust(w) for c, w in zip(r, widths, strict=True))
+                    out.append(indent + "  ".join(cells).rstrip())
+        i = end + 1
+    return out
+
+
+BROKEN_ROLE = re.compile(r"(:[a-z:]+:`[^`\s]*)$")
+
+
+def join_broken_roles(lines: list[str]) -> list[str]:
+    """A role whose target is wrapped onto the next line (``:func:`~a.b.`` / ``c```) is joined
+    (autosummary cuts a one-line summary at the first ". ", which would split it)."""
+    out: list[str] = []
+    for line in lines:
+        if out and BROKEN_ROLE.search(out[-1]) and line.strip():
+            words = line.strip().split(maxsplit=1)
+            head, rest = words[0], words[1] if len(words) > 1 else ""
+            out[-1] = out[-1] + head
+            if rest:
+                out.append(line[: len(line) - len(line.lstrip())] + rest)
+            continue
+        out.append(line)
+    return out
+
+
+def rst_repairs(app: Sphinx, what: str, name: str, obj: Any, options: Any,
+                lines: list[str]) -> None:
+    """autodoc hook: make plain-text docstrings valid reStructuredText without changing what
+    they say: absolute-value bars escaped, simple tables widened to their text, section
+    underlines lengthened to their titles. Literal blocks (after ``::``) stay as written."""
+    if lines and lines[0].startswith(".. include::"):
+        return  # a Markdown docstring, parsed by MyST
+    fixed = widen_simple_tables(join_broken_roles(lines))
+    literal_indent: int | None = None
+    for k, line in enumerate(fixed):
+        indent = len(line) - len(line.lstrip())
+        if literal_indent is not None:
+            if line.strip() and indent <= literal_indent:
+                literal_indent = None
+            else:
+                continue
+        stripped = line.strip()
+        if stripped.endswith("::"):
+            literal_indent = indent
+        if stripped.startswith(("| ", "+-", "+=", ">>>")) or stripped == "|":
+            continue
+        fixed[k] = escape_bars(line)
+        if k + 1 < len(fixed) and stripped and (k == 0 or not fixed[k - 1].strip()):
+            u = UNDERLINE.match(fixed[k + 1])
+            if u and len(fixed[k + 1].strip()) < len(stripped) and u.group(1) == line[:indent]:
+                fixed[k + 1] = u.group(1) + u.group(2) * len(stripped)
+    lines[:] = fixed

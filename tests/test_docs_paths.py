@@ -1,0 +1,131 @@
+"""Every repository path and every ``python -m`` module the docs name exists.
+
+Scanned: README.md, the Markdown pages under docs/ and the comments of the shipped configs
+(``softhand_env/configs``; ``configs/`` is the same folder). The ``results.yml`` and
+``config.yml`` files of ``agents/models`` are written by the commands and not scanned.
+
+A *path mention* is, in Markdown, a backticked token with a ``/`` that either ends in a known
+file extension or starts with one of the repository's top-level folders; in a YAML comment the
+same kind of token without backticks. Tokens with placeholders (``<task>``, ``*``, ``$X``) are
+patterns, not paths, and paths under the folders that ``.gitignore`` lists (``out/``,
+``logs/``, ...) are outputs of the commands. Every other mention must exist relative to the
+repository root. A *module mention* is ``python -m NAME`` (code blocks included): NAME must be
+found on ``sys.path`` without running it (a package needs a ``__main__``).
+"""
+
+from __future__ import annotations
+
+import importlib.machinery
+import importlib.util
+import re
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parent.parent
+EXTENSIONS = (".py", ".md", ".yaml", ".yml", ".toml", ".png", ".npz", ".zip", ".pkl", ".json",
+              ".csv", ".txt", ".gif", ".cfg", ".sh")
+TOP_FOLDERS = tuple(sorted(p.name for p in ROOT.iterdir() if p.is_dir()
+                           and (not p.name.startswith((".", "__")) or p.name == ".ci")))
+BACKTICKED = re.compile(r"`([^`\s]+)`")
+BARE = re.compile(r"(?<![\w./-])((?:[\w.-]+/)+[\w.-]*\w/?)")
+MODULE = re.compile(r"\bpython3? -m ([A-Za-z_]\w*(?:\.\w+)*)(?![\w.<{])")
+PLACEHOLDER = re.compile(r"[<>*${}\[\]]|\.\.\.|://")
+
+
+def ignored_roots() -> tuple[str, ...]:
+    """Top-level output folders of the commands, as ``.gitignore`` names them (``out/``)."""
+    lines = (ROOT / ".gitignore").read_text().splitlines()
+    return tuple(ln.strip().strip("/") + "/" for ln in lines
+                 if re.fullmatch(r"[\w.-]+/", ln.strip()))
+
+
+def looks_like_path(token: str) -> bool:
+    token = token.rstrip(".,;:)")
+    if "/" not in token or PLACEHOLDER.search(token) or token.startswith(("/", "~")):
+        return False
+    if token.startswith(ignored_roots()):
+        return False
+    return token.endswith(EXTENSIONS) or token.split("/")[0] in TOP_FOLDERS
+
+
+def path_mentions(text: str, *, backticked: bool = True) -> list[str]:
+    """Repository paths named in ``text`` (backticked tokens, or bare tokens for YAML)."""
+    tokens = BACKTICKED.findall(text) if backticked else BARE.findall(text)
+    return [t.rstrip(".,;:)") for t in tokens if looks_like_path(t)]
+
+
+def module_mentions(text: str) -> list[str]:
+    return MODULE.findall(text)
+
+
+def module_exists(name: str) -> bool:
+    """``python -m name`` would find a module: each dotted part located on the path without
+    importing (no package code runs); a package must have a ``__main__``."""
+    parts = name.split(".")
+    spec = importlib.util.find_spec(parts[0])
+    for part in parts[1:]:
+        if spec is None or not spec.submodule_search_locations:
+            return False
+        spec = importlib.machinery.PathFinder.find_spec(
+            f"{spec.name}.{part}", list(spec.submodule_search_locations))
+    if spec is None:
+        return False
+    if spec.submodule_search_locations:  # a package: python -m runs its __main__
+        return importlib.machinery.PathFinder.find_spec(
+            f"{spec.name}.__main__", list(spec.submodule_search_locations)) is not None
+    return True
+
+
+def missing(text: str, *, yaml_comments: bool = False) -> list[str]:
+    """The mentions of ``text`` that do not exist, as ``path: ...`` / ``module: ...``."""
+    if yaml_comments:
+        text = "\n".join(ln.split("#", 1)[1] for ln in text.splitlines() if "#" in ln)
+    bad = [f"path: {p}" for p in path_mentions(text, backticked=not yaml_comments)
+           if not (ROOT / p).exists()]
+    bad += [f"module: {m}" for m in module_mentions(text) if not module_exists(m)]
+    return bad
+
+
+def markdown_files() -> list[Path]:
+    pages = [p for p in (ROOT / "docs").rglob("*.md")
+             if not {"_build", "_autosummary"} & set(p.relative_to(ROOT / "docs").parts)]
+    return [ROOT / "README.md", *sorted(pages)]
+
+
+def yaml_files() -> list[Path]:
+    return sorted(p for ext in ("*.yaml", "*.yml")
+                  for p in (ROOT / "softhand_env" / "configs").rglob(ext))
+
+
+@pytest.mark.parametrize("path", markdown_files(), ids=lambda p: str(p.relative_to(ROOT)))
+def test_markdown_mentions_exist(path):
+    assert missing(path.read_text()) == []
+
+
+@pytest.mark.parametrize("path", yaml_files(), ids=lambda p: str(p.relative_to(ROOT)))
+def test_yaml_comment_mentions_exist(path):
+    assert missing(path.read_text(), yaml_comments=True) == []
+
+
+def test_the_scan_sees_the_mentions_it_checks():
+    """The checks above are not vacuous: the pages name paths and modules."""
+    text = "\n".join(p.read_text() for p in markdown_files())
+    paths, modules = set(path_mentions(text)), set(module_mentions(text))
+    assert {"configs/hand/paper_ch5.yaml", "tests/test_env_random.py"} <= paths
+    assert {"agents.demo", "agents.train", "softhand_env.figures", "pytest"} <= modules
+    yaml_text = "\n".join(ln.split("#", 1)[1] for p in yaml_files()
+                          for ln in p.read_text().splitlines() if "#" in ln)
+    assert "softhand_env/physics/params.py" in path_mentions(yaml_text, backticked=False)
+
+
+def test_a_wrong_mention_is_reported():
+    text = ("The loader is `softhand_env/params.py`, the hand `configs/hand/paper.yaml`, see "
+            "`docs/nowhere.md`; run `python -m agents.no_such_command` or python -m "
+            "softhand_env.physics (a package without __main__). Fine: `configs/tasks/<task>.yaml`, "
+            "`out/demo/summary.md`, `x/theta`, python -m agents.demo, `docs/design.md`.")
+    assert missing(text) == ["path: softhand_env/params.py", "path: configs/hand/paper.yaml",
+                             "path: docs/nowhere.md", "module: agents.no_such_command",
+                             "module: softhand_env.physics"]
+    comment = "key: 1.0   # see softhand_env/params.py and docs/design.md\n"
+    assert missing(comment, yaml_comments=True) == ["path: softhand_env/params.py"]
