@@ -14,7 +14,7 @@ translates between the two conventions without copying any transition logic:
 * **Infos.** The batched info dict (arrays with ``_key`` masks) becomes one dict per env.
 * **Seeding.** ``seed(s)`` then ``reset()`` seeds env i with ``s + i`` (SB3's rule, and
   ``reset(seed=[...])`` of the vector env), so the same seeds and actions give the same
-  transitions as ``DummyVecEnv`` (``tests/test_native_vec_env.py``).
+  transitions as ``DummyVecEnv`` (``tests/agents/test_native_vec_env.py``).
 * **Episode statistics.** As under SB3's ``Monitor``, the info of an episode's last step
   carries ``"episode": {"r": return, "l": length, "t": seconds since creation}``. The adapter
   does this itself rather than under ``VecMonitor``, so that a training env

@@ -50,7 +50,7 @@ RANDOM_IDS = tuple(i for i in ENV_IDS if i.endswith("Random-v0"))
 #: set-point latency of 0 or 1 control steps per episode, and the RK4 substep halved (0.05 ms),
 #: at which every corner of these ranges is within RK4's stability region (at 0.1 ms the
 #: lightest, softest, least damped corner is not). Post-grasp d_n stays below a/2
-#: (tests/test_env_random.py).
+#: (tests/envs/test_random.py).
 RANDOM_KWARGS: dict[str, Any] = {
     "rand_width": 0.1,
     "rand_mass": 0.5,

@@ -85,7 +85,7 @@ def test_deprecated_alias_warns_and_is_the_module_it_names(alias, target, name, 
 
 
 def test_top_level_configs_link_both_homes():
-    root = Path(__file__).resolve().parent.parent / "configs"
+    root = Path(__file__).resolve().parents[2] / "configs"
     assert (root / "agents").resolve() == CONFIG_DIR
     for name in ("hand", "tasks"):
         assert (root / name).resolve() == (root.parent / "softhand_env" / "configs" / name)

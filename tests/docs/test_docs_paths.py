@@ -22,7 +22,7 @@ from pathlib import Path
 
 import pytest
 
-ROOT = Path(__file__).resolve().parent.parent
+ROOT = Path(__file__).resolve().parents[2]
 EXTENSIONS = (".py", ".md", ".yaml", ".yml", ".toml", ".png", ".npz", ".zip", ".pkl", ".json",
               ".csv", ".txt", ".gif", ".cfg", ".sh")
 TOP_FOLDERS = tuple(sorted(p.name for p in ROOT.iterdir() if p.is_dir()
@@ -112,7 +112,7 @@ def test_the_scan_sees_the_mentions_it_checks():
     """The checks above are not vacuous: the pages name paths and modules."""
     text = "\n".join(p.read_text() for p in markdown_files())
     paths, modules = set(path_mentions(text)), set(module_mentions(text))
-    assert {"configs/hand/paper_ch5.yaml", "tests/test_env_random.py"} <= paths
+    assert {"configs/hand/paper_ch5.yaml", "tests/envs/test_random.py"} <= paths
     assert {"agents.demo", "agents.train", "softhand_env.figures", "pytest"} <= modules
     yaml_text = "\n".join(ln.split("#", 1)[1] for p in yaml_files()
                           for ln in p.read_text().splitlines() if "#" in ln)

@@ -17,7 +17,7 @@ from agents.runs import loading
 from agents.runs.loading import shipped_models
 from agents.runs.zoo_dialect import zoo_yaml_dump, zoo_yaml_load
 
-ROOT = Path(__file__).resolve().parent.parent
+ROOT = Path(__file__).resolve().parents[2]
 SHIPPED_ZIPS = shipped_models()
 
 #: Shipped model (by name) -> lowest success rate accepted on the first 10 test goals (seeds

@@ -29,7 +29,6 @@ import yaml
 from gymnasium.vector import SyncVectorEnv
 from hypothesis import HealthCheck, event, given, settings
 from hypothesis import strategies as st
-from test_reliability_invariants import check_transition
 
 import softhand_env  # noqa: F401  (registers the environments)
 from softhand_env.envs import ENV_IDS, SoftHandEnv, SoftHandVectorEnv
@@ -37,6 +36,7 @@ from softhand_env.envs.task_configs import load_task_config
 from softhand_env.envs.tasks import TASK_KWARGS
 from softhand_env.physics import PhysicsError
 from softhand_env.physics.params import _RANGES, YAML_KEYS, HandParams, hand_params_from_dict
+from tests.reliability.test_invariants import check_transition
 
 TASK_IDS = {task: env_id for env_id, task in reversed(ENV_IDS.items())}  # nominal ids
 TASKS = tuple(TASK_IDS)

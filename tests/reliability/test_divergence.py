@@ -29,12 +29,12 @@ import gymnasium as gym
 import numpy as np
 import pytest
 from gymnasium.vector import SyncVectorEnv
-from test_reliability_invariants import base_overshoot, check_transition
 
 import softhand_env  # noqa: F401  (registers the environments)
 from softhand_env.envs import SoftHandVectorEnv
 from softhand_env.physics import kernel
 from softhand_env.physics.motions import PAPER_MOTIONS_DEG
+from tests.reliability.test_invariants import base_overshoot, check_transition
 
 RAD = {"action_mode": "absolute", "normalize_action": False}
 UNSTABLE_NAN = {"alpha": 1e7, "dt": 2e-4, "M_deform": 100.0}

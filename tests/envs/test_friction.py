@@ -67,7 +67,7 @@ def _paper_replay(**kwargs):
 
 
 def test_terminate_on_slip_false_only_reports():
-    """mu = 0.2: the replay slips at control step 52 (tests/test_agents_scripted.py); without
+    """mu = 0.2: the replay slips at control step 52 (tests/agents/test_scripted.py); without
     slip termination it runs to the end and reports the ratios above mu."""
     infos, terminated = _paper_replay(hand_overrides=LOW_MU, terminate_on_slip=False)
     assert not terminated and len(infos) == 400

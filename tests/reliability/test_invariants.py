@@ -1,7 +1,7 @@
 """Invariants of every environment transition, shared by the reliability tests.
 
-:func:`check_transition` is the oracle the fuzzers (``test_reliability_fuzz.py``) and the
-divergence tests (``test_reliability_divergence.py``) apply after every ``step``: finite
+:func:`check_transition` is the oracle the fuzzers (``test_fuzz.py``) and the
+divergence tests (``test_divergence.py``) apply after every ``step``: finite
 observation inside the space, finite reward equal to the sum of its terms, finite info, and a
 termination reason that agrees with the state it reports. It recomputes the fingertip-base
 criterion from :func:`softhand_env.physics.contact.max_contact_angle` (chapter 2), not from the

@@ -17,7 +17,7 @@ from agents.common import cli, env_factory
 from agents.runs import hyperparams, loading
 from agents.runs.zoo_dialect import zoo_yaml_load
 
-ROOT = Path(__file__).resolve().parent.parent
+ROOT = Path(__file__).resolve().parents[2]
 ENV = {**os.environ, "PYTHONPATH": str(ROOT), "SDL_VIDEODRIVER": "dummy", "MPLBACKEND": "Agg"}
 #: A tiny PPO run: 2 envs x 64 steps per update.
 TINY_PPO = ["--hyperparams", "n_envs:2", "n_steps:64", "batch_size:64", "n_epochs:1"]

@@ -22,7 +22,7 @@ from pathlib import Path
 
 import pytest
 
-ROOT = Path(__file__).resolve().parent.parent
+ROOT = Path(__file__).resolve().parents[2]
 #: Layer of each sub-package of softhand_env (lower imports nothing higher); siblings of one
 #: rank do not import each other.
 LAYERS = {"physics": 0, "quasistatic": 1, "envs": 2, "tools": 3, "figures": 3}

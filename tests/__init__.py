@@ -1,0 +1,1 @@
+"""Tests of softhand-env; sub-packages mirror the source tree."""

@@ -1,0 +1,1 @@
+"""Tests of the agents: scripted policies, training, evaluation, run loading."""

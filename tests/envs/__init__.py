@@ -1,0 +1,1 @@
+"""Tests of the environments (Gymnasium API, tasks, observations, vector env)."""

@@ -1,0 +1,1 @@
+"""Tests of the physics and quasi-static layers (contact, model, kernels, planner)."""

@@ -1,0 +1,1 @@
+"""Reliability tests: determinism, invariants, fuzzing, divergence, soak."""

@@ -1,0 +1,1 @@
+"""Tests of the tools and figures (benchmarks, teleoperation, figure commands)."""
