@@ -272,9 +272,10 @@ def window_impulses(impulse: np.ndarray, m: int, sliding: bool = False) -> tuple
     cs = np.vstack([np.zeros((1, 4)), np.cumsum(impulse, axis=0)])
     if sliding:
         ends = np.arange(min(m, K), K + 1)
+        starts = np.maximum(ends - m, 0)
     else:
         ends = np.append(np.arange(m, K + 1, m), K) if K % m else np.arange(m, K + 1, m)
-    starts = np.maximum(ends - m, 0)
+        starts = np.append(0, ends[:-1])
     return cs[ends] - cs[starts], ends
 
 
