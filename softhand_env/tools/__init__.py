@@ -1,7 +1,8 @@
 """Command-line tools: ``python -m softhand_env.tools.<name>``.
 
 :mod:`.bench` (kernel speed), :mod:`.bench_env` (env steps/s), :mod:`.bench_quasistatic`
-(quasi-static solver speed) and :mod:`.soak` (long random-action run: steps/s, terminations,
-RSS). ``softhand_env.tools.simulate`` is a deprecated alias of
-:mod:`softhand_env.physics.motions`.
+(quasi-static solver speed), :mod:`.soak` (long random-action run: steps/s, terminations, RSS),
+:mod:`.slip_windows` (friction ratio over windows of physical time, from 1 ms replays) and
+:mod:`.observability` (how well an MLP reads the object pose from the observation frames).
+``softhand_env.tools.simulate`` is a deprecated alias of :mod:`softhand_env.physics.motions`.
 """

@@ -1,0 +1,358 @@
+"""How blind is an environment? Regress the object's pose from the agent's observation frames.
+
+::
+
+    python -m softhand_env.tools.observability --env SoftHandPose-v0
+    python -m softhand_env.tools.observability --env SoftHandPoseRandom-v0 \\
+        --env-kwargs obs_mode:proprio_tactile obs_noise:0 --frames 1 4 --episodes 40
+
+Rolls out ``--episodes`` episodes (``reset(seed=SEED + k)``) of a data-collection policy,
+records every observation frame the agent would see (noise included; the goal entries and the
+env's own history are left out) and the true object pose (x, y, theta) from
+``info["object_pose"]``, splits the data by EPISODE into training and held-out episodes, fits
+a small MLP (PyTorch) from the newest frame and from k stacked frames (newest first; the first
+frame repeats before the episode start, as the env's ``history_len`` does) to the pose, and
+prints a table: RMSE of x and y (mm) and theta (deg) on the held-out frames, and the fraction
+of held-out frames whose x is within 1 mm AND theta within 1 deg (the benchmark's success
+tolerances). The row ``mean`` predicts the training mean pose: the spread the frames have to
+explain.
+
+Policies (both read nothing of the object; the tool may read the env, the regressor only sees
+the frames):
+
+* ``scripted`` (default): a smooth random set-point walk around the grasp. Every
+  ``WALK_HOLD_S`` seconds it draws a new target pair (g + phi + s_1, g - phi + s_2), g the
+  grasp set-point, phi ~ U(-10, 10) deg a common rotation (rolling the object over about
+  +-13 mm and +-8 deg) and s_i ~ U(-1.5, 1) deg a per-finger squeeze offset (changing the
+  grasp force and the roll), and moves the set-points towards it at most 25 deg/s. It runs in
+  ``action_mode="absolute", normalize_action=False`` (set by the tool; the observation does
+  not depend on the action mode). Episodes run to the env's time limit (or ``--max-steps``)
+  unless they fail.
+* ``random``: uniform samples of the env's own action space (seeded), with the env's action
+  mode (delta by default: a random walk of the set-points by up to ``max_delta_deg`` per step,
+  which ends most episodes early by over-compression or a lost grasp).
+
+The regression is seeded and deterministic (one torch thread). ``--shuffle-labels`` permutes
+the training poses across frames: the fit then cannot learn anything, which is the sanity
+check that the table measures information in the frames.
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+#: Success tolerances of the benchmark: x (m) and theta (rad).
+X_TOL = 1e-3
+THETA_TOL = math.radians(1.0)
+#: Set-point walk: seconds between targets, largest rate (rad/s), ranges (rad).
+WALK_HOLD_S = 0.2
+WALK_RATE = math.radians(25.0)
+WALK_ROTATION = math.radians(10.0)
+WALK_SQUEEZE = (math.radians(-1.5), math.radians(1.0))
+POLICIES = ("scripted", "random")
+
+
+class SetpointWalk:
+    """The ``scripted`` policy: a smooth random set-point walk (module doc).
+
+    Parameters
+    ----------
+    grasp : array_like, shape (2,)
+        Set-points at the reset (rad).
+    dt : float
+        Control period (s).
+    rng : numpy.random.Generator
+    """
+
+    def __init__(self, grasp: Any, dt: float, rng: np.random.Generator):
+        self.grasp = np.asarray(grasp, dtype=np.float64).copy()
+        self.u = self.grasp.copy()
+        self.rng = rng
+        self.hold = max(1, round(WALK_HOLD_S / dt))
+        self.max_step = WALK_RATE * dt
+        self.target = self.grasp.copy()
+        self.k = 0
+
+    def __call__(self) -> np.ndarray:
+        """Set-points (rad, shape (2,)) of the next control step."""
+        if self.k % self.hold == 0:
+            phi = self.rng.uniform(-WALK_ROTATION, WALK_ROTATION)
+            s = self.rng.uniform(*WALK_SQUEEZE, size=2)
+            self.target = self.grasp + np.array([phi, -phi]) + s
+        self.k += 1
+        self.u = self.u + np.clip(self.target - self.u, -self.max_step, self.max_step)
+        return self.u.copy()
+
+
+@dataclass
+class Episodes:
+    """Frames and poses of the rolled-out episodes.
+
+    Attributes
+    ----------
+    frames : list of ndarray, shape (T_k + 1, frame_size)
+        Observation frames (scaled units, float64) at the reset and after every step.
+    poses : list of ndarray, shape (T_k + 1, 3)
+        True object pose (x, y, theta; m, m, rad) of the same instants.
+    frame_size : int
+    """
+
+    frames: list[np.ndarray]
+    poses: list[np.ndarray]
+    frame_size: int
+
+
+def collect(env_id: str, env_kwargs: dict[str, Any] | None = None, episodes: int = 40,
+            policy: str = "scripted", seed: int = 0, max_steps: int | None = None) -> Episodes:
+    """Roll out ``episodes`` episodes (``reset(seed=seed + k)``) of ``policy`` in
+    ``gym.make(env_id, history_len=1, **env_kwargs)`` (the scripted policy also sets absolute
+    set-point actions); episodes end at a termination, the time limit or ``max_steps``."""
+    import gymnasium as gym
+
+    import softhand_env  # noqa: F401  (registers the ids)
+
+    if policy not in POLICIES:
+        raise ValueError(f"policy must be one of {POLICIES} (got {policy!r})")
+    kw = {**(env_kwargs or {}), "history_len": 1}
+    if policy == "scripted":
+        kw.update(action_mode="absolute", normalize_action=False)
+    env = gym.make(env_id, **kw)
+    f = env.unwrapped.config.layout.frame_size  # type: ignore[attr-defined]
+    dt = float(env.unwrapped.dt)  # type: ignore[attr-defined]
+    frames, poses = [], []
+    for k in range(episodes):
+        obs, info = env.reset(seed=seed + k)
+        rng = np.random.default_rng([seed, k])
+        env.action_space.seed(int(rng.integers(2**31)))
+        walk = SetpointWalk(info["setpoint"], dt, rng)
+        fr, po = [np.asarray(obs[:f], dtype=np.float64)], [np.asarray(info["object_pose"])]
+        t = 0
+        while max_steps is None or t < max_steps:
+            action = walk() if policy == "scripted" else env.action_space.sample()
+            obs, _, terminated, truncated, info = env.step(action)
+            t += 1
+            fr.append(np.asarray(obs[:f], dtype=np.float64))
+            po.append(np.asarray(info["object_pose"]))
+            if terminated or truncated:
+                break
+        frames.append(np.array(fr))
+        poses.append(np.array(po))
+    env.close()
+    return Episodes(frames, poses, f)
+
+
+def stack_frames(frames: np.ndarray, k: int) -> np.ndarray:
+    """Rows t = [frame_t, frame_{t-1}, ..., frame_{t-k+1}] of one episode (frames (T, F));
+    frame 0 stands in before the start. Returns (T, k * F)."""
+    T = len(frames)
+    idx = np.maximum(np.arange(T)[:, None] - np.arange(k)[None, :], 0)
+    return frames[idx].reshape(T, -1)
+
+
+def split_episodes(n: int, held_out: float, seed: int) -> tuple[np.ndarray, np.ndarray]:
+    """Indices of the training and held-out episodes (a seeded permutation; at least one
+    episode on each side)."""
+    if n < 2:
+        raise ValueError(f"need at least 2 episodes to hold some out (got {n})")
+    perm = np.random.default_rng(seed).permutation(n)
+    n_test = min(n - 1, max(1, round(held_out * n)))
+    return np.sort(perm[n_test:]), np.sort(perm[:n_test])
+
+
+def _torch() -> Any:
+    try:
+        import torch
+    except ImportError:
+        raise SystemExit("softhand_env.tools.observability needs PyTorch "
+                         "(pip install 'softhand-env[train]')") from None
+    return torch
+
+
+def fit_mlp(X: np.ndarray, Y: np.ndarray, hidden: Sequence[int] = (128, 128),
+            epochs: int = 150, batch: int = 256, lr: float = 1e-3, seed: int = 0) -> Any:
+    """Fit an MLP (ReLU, Adam, mean-squared error on standardised inputs and targets).
+
+    Parameters
+    ----------
+    X : ndarray, shape (n, d)
+    Y : ndarray, shape (n, m)
+    hidden : widths of the hidden layers
+
+    Returns
+    -------
+    callable
+        ``predict(X) -> Y`` (ndarray (n', m), Y's units).
+    """
+    torch = _torch()
+    torch.manual_seed(seed)
+    torch.set_num_threads(1)
+    x_mu, x_sd = X.mean(0), X.std(0) + 1e-8
+    y_mu, y_sd = Y.mean(0), Y.std(0) + 1e-12
+    layers: list[Any] = []
+    width = X.shape[1]
+    for h in hidden:
+        layers += [torch.nn.Linear(width, h), torch.nn.ReLU()]
+        width = h
+    layers.append(torch.nn.Linear(width, Y.shape[1]))
+    net = torch.nn.Sequential(*layers).double()
+    xt = torch.from_numpy((X - x_mu) / x_sd)
+    yt = torch.from_numpy((Y - y_mu) / y_sd)
+    opt = torch.optim.Adam(net.parameters(), lr=lr)
+    sched = torch.optim.lr_scheduler.CosineAnnealingLR(opt, T_max=epochs)
+    gen = torch.Generator().manual_seed(seed)
+    n = len(xt)
+    for _ in range(epochs):
+        order = torch.randperm(n, generator=gen)
+        for i in range(0, n, batch):
+            b = order[i : i + batch]
+            opt.zero_grad()
+            loss = torch.mean((net(xt[b]) - yt[b]) ** 2)
+            loss.backward()
+            opt.step()
+        sched.step()
+
+    def predict(Xn: np.ndarray) -> np.ndarray:
+        with torch.no_grad():
+            out = net(torch.from_numpy((Xn - x_mu) / x_sd)).numpy()
+        return out * y_sd + y_mu
+
+    return predict
+
+
+@dataclass(frozen=True)
+class Row:
+    """Held-out accuracy of one regressor.
+
+    Attributes
+    ----------
+    label : str
+        ``"mean"`` or ``"<k> frame(s)"``.
+    rmse_x_mm, rmse_y_mm, rmse_theta_deg : float
+    within : float
+        Fraction of held-out frames with |x error| < 1 mm and |theta error| < 1 deg.
+    n_frames : int
+        Held-out frames.
+    """
+
+    label: str
+    rmse_x_mm: float
+    rmse_y_mm: float
+    rmse_theta_deg: float
+    within: float
+    n_frames: int
+
+
+def score(label: str, pred: np.ndarray, true: np.ndarray) -> Row:
+    """:class:`Row` of predicted vs true poses (n, 3) (m, m, rad)."""
+    err = pred - true
+    rmse = np.sqrt(np.mean(err**2, axis=0))
+    ok = (np.abs(err[:, 0]) < X_TOL) & (np.abs(err[:, 2]) < THETA_TOL)
+    return Row(label, 1e3 * rmse[0], 1e3 * rmse[1], math.degrees(rmse[2]), float(ok.mean()),
+               len(true))
+
+
+def observability(data: Episodes, frames: Sequence[int] = (1, 4), held_out: float = 0.25,
+                  seed: int = 0, hidden: Sequence[int] = (128, 128), epochs: int = 150,
+                  shuffle_labels: bool = False) -> list[Row]:
+    """Rows of the table: the training-mean baseline, then one MLP per entry of ``frames``
+    (stacked frames), trained on the training episodes, scored on the held-out ones."""
+    train, test = split_episodes(len(data.frames), held_out, seed)
+
+    def design(k: int, eps: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        X = np.vstack([stack_frames(data.frames[e], k) for e in eps])
+        Y = np.vstack([data.poses[e] for e in eps])
+        return X, Y
+
+    _, y_test = design(1, test)
+    _, y_train = design(1, train)
+    rows = [score("mean", np.broadcast_to(y_train.mean(0), y_test.shape), y_test)]
+    for k in frames:
+        X, Y = design(int(k), train)
+        if shuffle_labels:
+            Y = Y[np.random.default_rng(seed).permutation(len(Y))]
+        predict = fit_mlp(X, Y, hidden, epochs, seed=seed)
+        Xt, Yt = design(int(k), test)
+        rows.append(score(f"{k} frame{'s' if k > 1 else ''}", predict(Xt), Yt))
+    return rows
+
+
+def format_table(title: str, rows: Sequence[Row]) -> str:
+    """Markdown table of :func:`observability`'s rows under a ``title`` line."""
+    lines = [title, "",
+             "| input | RMSE x (mm) | RMSE y (mm) | RMSE theta (deg) | within 1 mm and 1 deg |",
+             "|---|---|---|---|---|"]
+    for r in rows:
+        lines.append(f"| {r.label} | {r.rmse_x_mm:.3f} | {r.rmse_y_mm:.3f} | "
+                     f"{r.rmse_theta_deg:.3f} | {100 * r.within:.1f} % |")
+    return "\n".join(lines)
+
+
+def _parse_kv(items: Sequence[str] | None) -> dict[str, Any]:
+    import yaml
+
+    out: dict[str, Any] = {}
+    for item in items or ():
+        key, sep, value = item.partition(":")
+        if not sep or not key:
+            raise SystemExit(f"--env-kwargs expects key:value items (got {item!r})")
+        try:
+            out[key] = yaml.safe_load(value)
+        except yaml.YAMLError:
+            raise SystemExit(f"--env-kwargs: cannot parse the value of {item!r}") from None
+    return out
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Command-line entry point; prints the table."""
+    ap = argparse.ArgumentParser(prog="python -m softhand_env.tools.observability",
+                                 description=__doc__.splitlines()[0])
+    ap.add_argument("--env", required=True, help="registered id, e.g. SoftHandPose-v0")
+    ap.add_argument("--env-kwargs", nargs="*", default=[], metavar="KEY:VALUE",
+                    help="gym.make keywords, values as YAML (obs_noise:0.003)")
+    ap.add_argument("--frames", type=int, nargs="+", default=[1, 4],
+                    help="stacked frames of each regressor (default 1 4)")
+    ap.add_argument("--episodes", type=int, default=40, help="episodes (default 40)")
+    ap.add_argument("--policy", choices=POLICIES, default="scripted")
+    ap.add_argument("--max-steps", type=int, default=None, help="cap on steps per episode")
+    ap.add_argument("--held-out", type=float, default=0.25,
+                    help="fraction of the episodes held out (default 0.25)")
+    ap.add_argument("--hidden", type=int, nargs="+", default=[128, 128],
+                    help="hidden layer widths (default 128 128)")
+    ap.add_argument("--epochs", type=int, default=150, help="training epochs (default 150)")
+    ap.add_argument("--seed", type=int, default=0, help="episode k: reset(seed=SEED + k)")
+    ap.add_argument("--shuffle-labels", action="store_true",
+                    help="permute the training poses (sanity check: no information)")
+    args = ap.parse_args(argv)
+    if args.episodes < 2 or not 0 < args.held_out < 1 or args.epochs < 1:
+        ap.error("--episodes must be >= 2, --held-out in (0, 1), --epochs >= 1")
+    if min(args.frames) < 1 or min(args.hidden) < 1:
+        ap.error("--frames and --hidden must be >= 1")
+    if args.max_steps is not None and args.max_steps < 1:
+        ap.error("--max-steps must be >= 1")
+    if args.seed < 0:
+        ap.error("--seed must be >= 0")
+    _torch()
+    kwargs = _parse_kv(args.env_kwargs)
+    try:
+        data = collect(args.env, kwargs, args.episodes, args.policy, args.seed, args.max_steps)
+    except (TypeError, ValueError) as exc:
+        raise SystemExit(f"cannot roll out {args.env} {kwargs}: {exc}") from None
+    rows = observability(data, args.frames, args.held_out, args.seed, args.hidden, args.epochs,
+                         args.shuffle_labels)
+    n = sum(len(p) for p in data.poses)
+    shown = " ".join(args.env_kwargs) or "defaults"
+    title = (f"{args.env} ({shown}), {args.policy} policy, {args.episodes} episodes "
+             f"({n} frames), {rows[0].n_frames} held-out frames"
+             + (", training labels shuffled" if args.shuffle_labels else ""))
+    print(format_table(title, rows))
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

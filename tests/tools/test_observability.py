@@ -1,0 +1,100 @@
+"""Observability tool: pose regression from observation frames on held-out episodes."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+pytest.importorskip("torch")
+
+from softhand_env.tools import observability as ob  # noqa: E402
+
+SMALL = {"episodes": 8, "max_steps": 60}
+FIT = {"frames": (1, 2), "epochs": 40, "hidden": (64, 64)}
+
+
+@pytest.fixture(scope="module")
+def data() -> ob.Episodes:
+    return ob.collect("SoftHandPose-v0", None, SMALL["episodes"], "scripted", seed=3,
+                      max_steps=SMALL["max_steps"])
+
+
+def test_collect_shapes_and_blind_frames(data):
+    assert len(data.frames) == len(data.poses) == SMALL["episodes"]
+    assert data.frame_size == 8  # proprio frame, goal entries and history left out
+    for fr, po in zip(data.frames, data.poses, strict=True):
+        assert fr.shape == (len(po), 8) and po.shape[1] == 3
+        assert 2 <= len(po) <= SMALL["max_steps"] + 1
+    # the walk moves the object: x spans millimetres across the data
+    x = np.concatenate([p[:, 0] for p in data.poses])
+    assert x.max() - x.min() > 2e-3
+
+
+def test_stack_frames_pads_with_the_first_frame():
+    frames = np.arange(10.0).reshape(5, 2)
+    s = ob.stack_frames(frames, 3)
+    assert s.shape == (5, 6)
+    np.testing.assert_array_equal(s[0], [0, 1, 0, 1, 0, 1])
+    np.testing.assert_array_equal(s[3], [6, 7, 4, 5, 2, 3])
+
+
+def test_split_is_by_episode_and_seeded():
+    train, test = ob.split_episodes(8, 0.25, seed=1)
+    assert len(test) == 2 and len(train) == 6 and not set(train) & set(test)
+    again = ob.split_episodes(8, 0.25, seed=1)
+    np.testing.assert_array_equal(train, again[0])
+    with pytest.raises(ValueError, match="at least 2"):
+        ob.split_episodes(1, 0.25, seed=1)
+
+
+def test_table_units_and_mean_baseline(data):
+    rows = ob.observability(data, seed=0, **FIT)
+    assert [r.label for r in rows] == ["mean", "1 frame", "2 frames"]
+    train, test = ob.split_episodes(len(data.frames), 0.25, 0)
+    y_test = np.vstack([data.poses[e] for e in test])
+    y_train = np.vstack([data.poses[e] for e in train])
+    err = y_test - y_train.mean(0)
+    # the baseline row is the held-out RMSE of the training mean, in mm and deg
+    assert rows[0].rmse_x_mm == pytest.approx(1e3 * np.sqrt(np.mean(err[:, 0] ** 2)))
+    assert rows[0].rmse_theta_deg == pytest.approx(math.degrees(np.sqrt(np.mean(err[:, 2] ** 2))))
+    assert all(r.n_frames == len(y_test) for r in rows)
+    assert all(0.0 <= r.within <= 1.0 for r in rows)
+    table = ob.format_table("t", rows)
+    assert "RMSE x (mm)" in table and "RMSE theta (deg)" in table
+    assert len(table.splitlines()) == 4 + len(rows)
+
+
+def test_fit_beats_shuffled_labels_and_is_deterministic(data):
+    rows = ob.observability(data, seed=0, **FIT)
+    again = ob.observability(data, seed=0, **FIT)
+    assert rows == again
+    shuffled = ob.observability(data, seed=0, shuffle_labels=True, **FIT)
+    for real, nonsense in zip(rows[1:], shuffled[1:], strict=True):
+        # the frames carry the pose (the PID torques balance the contact forces): a fit on
+        # the real labels is far better than one on labels permuted across frames, which
+        # can do no better than the mean
+        assert real.rmse_x_mm < 0.3 * nonsense.rmse_x_mm
+        assert real.rmse_theta_deg < 0.3 * nonsense.rmse_theta_deg
+        assert real.within > nonsense.within + 0.3
+        assert nonsense.rmse_x_mm > 0.7 * rows[0].rmse_x_mm
+
+
+def test_random_policy_and_cli(capsys):
+    assert ob.main(["--env", "SoftHandPose-v0", "--policy", "random", "--episodes", "4",
+                    "--max-steps", "20", "--epochs", "5", "--hidden", "16", "--frames", "1",
+                    "--env-kwargs", "obs_mode:proprio_tactile", "obs_noise:0.01"]) == 0
+    out = capsys.readouterr().out
+    assert "obs_mode:proprio_tactile obs_noise:0.01" in out and "random policy" in out
+    assert out.count("| 1 frame |") == 1 and "| mean |" in out
+
+
+def test_cli_errors():
+    with pytest.raises(SystemExit):
+        ob.main(["--env", "SoftHandPose-v0", "--episodes", "1"])
+    with pytest.raises(SystemExit, match="key:value"):
+        ob.main(["--env", "SoftHandPose-v0", "--env-kwargs", "obs_noise"])
+    with pytest.raises(SystemExit, match="cannot roll out"):
+        ob.main(["--env", "SoftHandPose-v0", "--env-kwargs", "obs_mode:vision",
+                 "--episodes", "2"])
