@@ -34,6 +34,7 @@ import hashlib
 import importlib
 import inspect
 import re
+import sys
 import types
 from pathlib import Path
 from typing import Any
@@ -300,7 +301,8 @@ def _pipe_cells(row: str) -> list[str]:
 def pipe_tables_to_list_tables(lines: list[str]) -> list[str]:
     """A Markdown pipe table (header row, ``|---|`` rule, rows) in a reStructuredText
     docstring becomes a ``list-table`` directive at the same indent, its Markdown code spans
-    inline literals (docutils would read the rows as a line block). Such tables are what
+    inline literals and its other bars escaped (docutils would read the rows as a line block;
+    the directive's content is not repaired again). Such tables are what
     :func:`softhand_env.envs.options.arguments_table` puts into the vector env's docstring,
     under the ``**kwargs`` entry of its Parameters."""
     out: list[str] = []
@@ -334,7 +336,7 @@ def pipe_tables_to_list_tables(lines: list[str]) -> list[str]:
         out += [f"{indent}.. list-table::", f"{indent}   :header-rows: 1", ""]
         for row in rows:
             for k, cell in enumerate(row):
-                text = MD_CODE.sub(r"``\1``", cell)
+                text = escape_bars(MD_CODE.sub(r"``\1``", cell))
                 out.append(f"{indent}   {'* -' if k == 0 else '  -'} {text}".rstrip())
         if j < len(lines) and lines[j].strip():
             out.append("")
@@ -430,6 +432,17 @@ def locate(name: str) -> tuple[Any, str] | None:
     return None
 
 
+def deprecated_alias(name: str) -> str | None:
+    """The module of dotted ``name`` that is a deprecated alias (its docstring opens with
+    "Deprecated alias", as ``softhand_env.tools.simulate``'s does), or None."""
+    parts = name.split(".")
+    for i in range(1, len(parts) + 1):
+        module = sys.modules.get(".".join(parts[:i]))
+        if module is not None and (module.__doc__ or "").startswith("Deprecated alias"):
+            return module.__name__
+    return None
+
+
 def own_reference(app: Sphinx, env: BuildEnvironment, node: pending_xref,
                   contnode: nodes.TextElement) -> nodes.Element | None:
     """``missing-reference`` hook: a Python reference Sphinx did not resolve.
@@ -439,6 +452,8 @@ def own_reference(app: Sphinx, env: BuildEnvironment, node: pending_xref,
       when that differs from the name written (re-exports, package shortcuts).
     * A ``softhand_env.``/``agents.`` target that still does not resolve is a warning: it
       names nothing (stale or misspelt) or an object the API reference does not document.
+      So is a link through a deprecated alias module (it resolves, but should name the
+      module the alias points to).
       Private names (a part starting with ``_``) are not documented by design and stay text.
     * Other targets (NumPy, Gymnasium, SB3, the shape words of numpy-style type fields) are
       left to Sphinx, which renders them as text.
@@ -466,6 +481,12 @@ def own_reference(app: Sphinx, env: BuildEnvironment, node: pending_xref,
         if not _is_own(canonical):
             return None  # a third-party object imported into our module
         if any(p.startswith("_") and not p.startswith("__") for p in canonical.split(".")):
+            return None
+        alias = deprecated_alias(target) if explicit else None
+        if alias is not None:
+            LOGGER.warning("py:%s reference %s goes through the deprecated alias %s: name %s",
+                           typ, target, alias, canonical, location=node, type="softhand_docs",
+                           subtype="own_reference")
             return None
         if canonical != target:
             xref = pending_xref("", refdomain="py", reftype=typ, reftarget=canonical,
