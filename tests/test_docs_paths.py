@@ -25,6 +25,7 @@ import importlib
 import importlib.machinery
 import importlib.util
 import re
+import warnings
 from pathlib import Path
 
 import pytest
@@ -111,7 +112,9 @@ def name_exists(name: str) -> bool:
             spec = None
         if spec is None:
             continue
-        obj = importlib.import_module(module)
+        with warnings.catch_warnings():  # the pages name the deprecated aliases as such
+            warnings.simplefilter("ignore", DeprecationWarning)
+            obj = importlib.import_module(module)
         for part in parts[i:]:
             if not hasattr(obj, part):
                 return False
