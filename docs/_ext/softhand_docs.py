@@ -18,19 +18,35 @@ Directives (for MyST pages; their output is Markdown parsed in place):
 The ``SoftHandEnv`` docstring is Markdown (Gymnasium's env-page shape). For the API reference,
 :func:`markdown_docstring` hands it to MyST instead of the reStructuredText parser, its
 ``## `` headings as rubrics (a class body cannot hold sections).
+
+Cross-references to this project's own names fail loudly (:func:`own_reference`): Sphinx
+turns an unresolved ``{py:...}`` / ``:py:...:`` reference into plain text unless it runs
+nitpicky, and nitpicky would report every NumPy shape word of the numpy-style type fields.
+A reference to ``softhand_env.<...>`` or ``agents.<...>`` that Sphinx does not find is looked
+up by import: a re-exported name (``softhand_env.physics.PhysicsError``) is sent to the page
+of the object's defining module, a name that imports to nothing or to an object without an
+entry in the API reference is a warning (an error under ``-W``).
 """
 
 from __future__ import annotations
 
 import hashlib
+import importlib
 import inspect
 import re
+import sys
+import types
 from pathlib import Path
 from typing import Any
 
 from docutils import nodes
+from sphinx.addnodes import pending_xref
 from sphinx.application import Sphinx
+from sphinx.environment import BuildEnvironment
+from sphinx.util import logging
 from sphinx.util.docutils import SphinxDirective
+
+LOGGER = logging.getLogger(__name__)
 
 ROLE = re.compile(r":(?:py:)?(func|class|data|mod|meth|attr|exc|obj):`([^`]+)`")
 HEADING = re.compile(r"^## (.+?)\s*$")
@@ -191,6 +207,7 @@ def setup(app: Sphinx) -> dict[str, Any]:
     app.connect("autodoc-process-docstring", markdown_docstring, priority=300)
     # before napoleon and sphinx-autodoc-typehints (500), which parse the text themselves
     app.connect("autodoc-process-docstring", rst_repairs, priority=400)
+    app.connect("missing-reference", own_reference)
     return {"version": "1", "parallel_read_safe": True, "parallel_write_safe": True}
 
 
@@ -269,6 +286,64 @@ def widen_simple_tables(lines: list[str]) -> list[str]:
     return out
 
 
+PIPE_ROW = re.compile(r"^(\s*)\|(.*)\|\s*$")
+PIPE_RULE = re.compile(r"^\s*\|(?:\s*:?-+:?\s*\|)+\s*$")
+MD_CODE = re.compile(r"(?<![`\w:])`([^`]+)`(?![`_\w])")
+
+
+def _pipe_cells(row: str) -> list[str]:
+    """The cells of a Markdown table row (inner text between the outer bars; ``\\|`` is a bar
+    inside a cell)."""
+    cells = re.split(r"(?<!\\)\|", row)
+    return [c.strip().replace("\\|", "|") for c in cells]
+
+
+def pipe_tables_to_list_tables(lines: list[str]) -> list[str]:
+    """A Markdown pipe table (header row, ``|---|`` rule, rows) in a reStructuredText
+    docstring becomes a ``list-table`` directive at the same indent, its Markdown code spans
+    inline literals and its other bars escaped (docutils would read the rows as a line block;
+    the directive's content is not repaired again). Such tables are what
+    :func:`softhand_env.envs.options.arguments_table` puts into the vector env's docstring,
+    under the ``**kwargs`` entry of its Parameters."""
+    out: list[str] = []
+    i = 0
+    while i < len(lines):
+        head = PIPE_ROW.match(lines[i])
+        if not (head and i + 1 < len(lines) and PIPE_RULE.match(lines[i + 1])):
+            out.append(lines[i])
+            i += 1
+            continue
+        indent = head.group(1)
+        rows = [_pipe_cells(head.group(2))]
+        j = i + 2
+        while j < len(lines):
+            m = PIPE_ROW.match(lines[j])
+            if not m or m.group(1) != indent:
+                break
+            rows.append(_pipe_cells(m.group(2)))
+            j += 1
+        width = len(rows[0])
+        if any(len(r) != width for r in rows):  # not a table this converter understands
+            out.extend(lines[i:j])
+            i = j
+            continue
+        # a table introduced by a deeper-indented line ending in ":" belongs to that line's
+        # block (a field description): a table substituted into a docstring at a fixed indent
+        # would otherwise end the section it is meant to sit in
+        before = next((ln for ln in reversed(out) if ln.strip()), "")
+        if before.rstrip().endswith(":") and len(before) - len(before.lstrip()) > len(indent):
+            indent = before[: len(before) - len(before.lstrip())]
+        out += [f"{indent}.. list-table::", f"{indent}   :header-rows: 1", ""]
+        for row in rows:
+            for k, cell in enumerate(row):
+                text = escape_bars(MD_CODE.sub(r"``\1``", cell))
+                out.append(f"{indent}   {'* -' if k == 0 else '  -'} {text}".rstrip())
+        if j < len(lines) and lines[j].strip():
+            out.append("")
+        i = j
+    return out
+
+
 BROKEN_ROLE = re.compile(r"(:[a-z:]+:`[^`\s]*)$")
 
 
@@ -291,11 +366,12 @@ def join_broken_roles(lines: list[str]) -> list[str]:
 def rst_repairs(app: Sphinx, what: str, name: str, obj: Any, options: Any,
                 lines: list[str]) -> None:
     """autodoc hook: make plain-text docstrings valid reStructuredText without changing what
-    they say: absolute-value bars escaped, simple tables widened to their text, section
-    underlines lengthened to their titles. Literal blocks (after ``::``) stay as written."""
+    they say: absolute-value bars escaped, simple tables widened to their text, Markdown pipe
+    tables as list tables, section underlines lengthened to their titles. Literal blocks
+    (after ``::``) stay as written."""
     if lines and lines[0].startswith(".. include::"):
         return  # a Markdown docstring, parsed by MyST
-    fixed = widen_simple_tables(join_broken_roles(lines))
+    fixed = widen_simple_tables(pipe_tables_to_list_tables(join_broken_roles(lines)))
     literal_indent: int | None = None
     for k, line in enumerate(fixed):
         indent = len(line) - len(line.lstrip())
@@ -315,3 +391,118 @@ def rst_repairs(app: Sphinx, what: str, name: str, obj: Any, options: Any,
             if u and len(fixed[k + 1].strip()) < len(stripped) and u.group(1) == line[:indent]:
                 fixed[k + 1] = u.group(1) + u.group(2) * len(stripped)
     lines[:] = fixed
+
+
+# --- references to this project's own names ------------------------------------------------
+
+OWN_PACKAGES = ("softhand_env", "agents")
+
+
+def _is_own(name: str) -> bool:
+    return name.split(".")[0] in OWN_PACKAGES
+
+
+def locate(name: str) -> tuple[Any, str] | None:
+    """Import ``name`` (a dotted path: the longest importable module prefix, then attributes)
+    and return (object, canonical dotted name), or None if it names nothing. The canonical
+    name is where the object is defined (``__module__`` + ``__qualname__`` of a class or
+    function, a module's ``__name__``), with any remaining attribute path appended."""
+    parts = name.split(".")
+    for i in range(len(parts), 0, -1):
+        try:
+            obj: Any = importlib.import_module(".".join(parts[:i]))
+        except ImportError:
+            continue
+        except Exception:  # noqa: BLE001 - a module that fails to import names nothing here
+            return None
+        canonical = obj.__name__
+        for part in parts[i:]:
+            try:
+                obj = getattr(obj, part)
+            except AttributeError:
+                return None
+            qual = getattr(obj, "__qualname__", None)
+            module = getattr(obj, "__module__", None)
+            if (isinstance(obj, type | types.FunctionType) and isinstance(qual, str)
+                    and isinstance(module, str) and "<locals>" not in qual):
+                canonical = f"{module}.{qual}"
+            else:
+                canonical = f"{canonical}.{part}"
+        return obj, canonical
+    return None
+
+
+def deprecated_alias(name: str) -> str | None:
+    """The module of dotted ``name`` that is a deprecated alias (its docstring opens with
+    "Deprecated alias", as ``softhand_env.tools.simulate``'s does), or None."""
+    parts = name.split(".")
+    for i in range(1, len(parts) + 1):
+        module = sys.modules.get(".".join(parts[:i]))
+        if module is not None and (module.__doc__ or "").startswith("Deprecated alias"):
+            return module.__name__
+    return None
+
+
+def own_reference(app: Sphinx, env: BuildEnvironment, node: pending_xref,
+                  contnode: nodes.TextElement) -> nodes.Element | None:
+    """``missing-reference`` hook: a Python reference Sphinx did not resolve.
+
+    * A target in this project (``softhand_env.``/``agents.``, or a short name that the
+      current module imports from this project) is resolved at the object's defining module
+      when that differs from the name written (re-exports, package shortcuts).
+    * A ``softhand_env.``/``agents.`` target that still does not resolve is a warning: it
+      names nothing (stale or misspelt) or an object the API reference does not document.
+      So is a link through a deprecated alias module (it resolves, but should name the
+      module the alias points to).
+      Private names (a part starting with ``_``) are not documented by design and stay text.
+    * Other targets (NumPy, Gymnasium, SB3, the shape words of numpy-style type fields) are
+      left to Sphinx, which renders them as text.
+    """
+    if node.get("refdomain") != "py":
+        return None
+    target = node.get("reftarget", "")
+    typ = node.get("reftype", "obj")
+    explicit = _is_own(target)
+    if explicit:
+        candidates = [target]
+    else:
+        module = node.get("py:module") or ""
+        if not _is_own(module) or not target or target.startswith("."):
+            return None
+        cls = node.get("py:class")
+        candidates = ([f"{module}.{cls}.{target}"] if cls else []) + [f"{module}.{target}"]
+    domain = env.get_domain("py")
+    canonical = None
+    for candidate in candidates:
+        found = locate(candidate)
+        if found is None:
+            continue
+        canonical = found[1]
+        if not _is_own(canonical):
+            return None  # a third-party object imported into our module
+        if any(p.startswith("_") and not p.startswith("__") for p in canonical.split(".")):
+            return None
+        alias = deprecated_alias(target) if explicit else None
+        if alias is not None:
+            LOGGER.warning("py:%s reference %s goes through the deprecated alias %s: name %s",
+                           typ, target, alias, canonical, location=node, type="softhand_docs",
+                           subtype="own_reference")
+            return None
+        if canonical != target:
+            xref = pending_xref("", refdomain="py", reftype=typ, reftarget=canonical,
+                                refexplicit=node.get("refexplicit", False), refwarn=False)
+            resolved = domain.resolve_xref(env, node["refdoc"], app.builder, typ, canonical,
+                                           xref, contnode)
+            if resolved is None and typ != "obj":  # e.g. :class: on a documented function
+                resolved = domain.resolve_xref(env, node["refdoc"], app.builder, "obj",
+                                               canonical, xref, contnode)
+            if resolved is not None:
+                return resolved
+        break
+    if explicit:
+        where = f" (defined as {canonical})" if canonical and canonical != target else ""
+        why = ("names no importable object" if canonical is None
+               else "has no entry in the API reference")
+        LOGGER.warning("py:%s reference %s%s %s", typ, target, where, why, location=node,
+                       type="softhand_docs", subtype="own_reference")
+    return None

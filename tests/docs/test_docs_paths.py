@@ -1,8 +1,9 @@
 """Every repository path and every ``python -m`` module the docs name exists.
 
 Scanned: README.md, the Markdown pages under docs/ and the comments of the shipped configs
-(``softhand_env/configs``; ``configs/`` is the same folder). The ``results.yml`` and
-``config.yml`` files of ``agents/models`` are written by the commands and not scanned.
+(``softhand_env/configs`` and ``agents/configs``; the top-level ``configs/`` links to them).
+The ``results.yml`` and ``config.yml`` files of ``agents/models`` are written by the commands
+and not scanned.
 
 A *path mention* is, in Markdown, a backticked token with a ``/`` that either ends in a known
 file extension or starts with one of the repository's top-level folders; in a YAML comment the
@@ -10,14 +11,21 @@ same kind of token without backticks. Tokens with placeholders (``<task>``, ``*`
 patterns, not paths, and paths under the folders that ``.gitignore`` lists (``out/``,
 ``logs/``, ...) are outputs of the commands. Every other mention must exist relative to the
 repository root. A *module mention* is ``python -m NAME`` (code blocks included): NAME must be
-found on ``sys.path`` without running it (a package needs a ``__main__``).
+found on ``sys.path`` without running it (a package needs a ``__main__``). A *name mention*
+is an inline code span of the Markdown that starts with a dotted name in ``softhand_env`` or
+``agents`` (```agents.runs.layout.MODELS_DIR```, a ``{py:...}`` role's target), or what an
+``import`` statement of a code block names (``from agents.runs.hyperparams import config_path``):
+it must import (the longest module prefix, then attributes), so a renamed module or object
+fails here.
 """
 
 from __future__ import annotations
 
+import importlib
 import importlib.machinery
 import importlib.util
 import re
+import warnings
 from pathlib import Path
 
 import pytest
@@ -31,6 +39,10 @@ BACKTICKED = re.compile(r"`([^`\s]+)`")
 BARE = re.compile(r"(?<![\w./-])((?:[\w.-]+/)+[\w.-]*\w/?)")
 MODULE = re.compile(r"\bpython3? -m ([A-Za-z_]\w*(?:\.\w+)*)(?![\w.<{])")
 PLACEHOLDER = re.compile(r"[<>*${}\[\]]|\.\.\.|://")
+CODE_SPAN = re.compile(r"`([^`\n]+)`")
+OWN_NAME = re.compile(r"^((?:softhand_env|agents)(?:\.[A-Za-z_]\w*)+)")
+FROM_IMPORT = re.compile(r"\bfrom ((?:softhand_env|agents)(?:\.\w+)*) import (\w+(?:, *\w+)*)")
+IMPORT = re.compile(r"\bimport ((?:softhand_env|agents)(?:\.\w+)*)")
 
 
 def ignored_roots() -> tuple[str, ...]:
@@ -77,6 +89,40 @@ def module_exists(name: str) -> bool:
     return True
 
 
+def name_mentions(text: str) -> list[str]:
+    """Dotted names of this project that open an inline code span of Markdown ``text`` or
+    that its ``import`` statements import."""
+    spans = (OWN_NAME.match(s) for s in CODE_SPAN.findall(text))
+    names = [m.group(1) for m in spans if m]
+    names += [f"{m.group(1)}.{n.strip()}" for m in FROM_IMPORT.finditer(text)
+              for n in m.group(2).split(",")]
+    names += IMPORT.findall(text)
+    return names
+
+
+def name_exists(name: str) -> bool:
+    """``name`` imports: its longest module prefix is found and imported (import errors of an
+    existing module propagate), and the rest are attributes."""
+    parts = name.split(".")
+    for i in range(len(parts), 0, -1):
+        module = ".".join(parts[:i])
+        try:
+            spec = importlib.util.find_spec(module)
+        except ModuleNotFoundError:  # a parent is a module, not a package
+            spec = None
+        if spec is None:
+            continue
+        with warnings.catch_warnings():  # the pages name the deprecated aliases as such
+            warnings.simplefilter("ignore", DeprecationWarning)
+            obj = importlib.import_module(module)
+        for part in parts[i:]:
+            if not hasattr(obj, part):
+                return False
+            obj = getattr(obj, part)
+        return True
+    return False
+
+
 def missing(text: str, *, yaml_comments: bool = False) -> list[str]:
     """The mentions of ``text`` that do not exist, as ``path: ...`` / ``module: ...``."""
     if yaml_comments:
@@ -84,6 +130,8 @@ def missing(text: str, *, yaml_comments: bool = False) -> list[str]:
     bad = [f"path: {p}" for p in path_mentions(text, backticked=not yaml_comments)
            if not (ROOT / p).exists()]
     bad += [f"module: {m}" for m in module_mentions(text) if not module_exists(m)]
+    if not yaml_comments:
+        bad += [f"name: {n}" for n in name_mentions(text) if not name_exists(n)]
     return bad
 
 
@@ -95,7 +143,8 @@ def markdown_files() -> list[Path]:
 
 def yaml_files() -> list[Path]:
     return sorted(p for ext in ("*.yaml", "*.yml")
-                  for p in (ROOT / "softhand_env" / "configs").rglob(ext))
+                  for folder in (ROOT / "softhand_env" / "configs", ROOT / "agents" / "configs")
+                  for p in folder.rglob(ext))
 
 
 @pytest.mark.parametrize("path", markdown_files(), ids=lambda p: str(p.relative_to(ROOT)))
@@ -114,6 +163,9 @@ def test_the_scan_sees_the_mentions_it_checks():
     paths, modules = set(path_mentions(text)), set(module_mentions(text))
     assert {"configs/hand/paper_ch5.yaml", "tests/envs/test_random.py"} <= paths
     assert {"agents.demo", "agents.train", "softhand_env.figures", "pytest"} <= modules
+    assert {"softhand_env.physics.motions", "agents.runs.loading",
+            "agents.scripted.policies.PaperSequencePolicy"} <= set(name_mentions(text))
+    assert any(p.parts[-3:-1] == ("agents", "configs") for p in yaml_files())
     yaml_text = "\n".join(ln.split("#", 1)[1] for p in yaml_files()
                           for ln in p.read_text().splitlines() if "#" in ln)
     assert "softhand_env/physics/params.py" in path_mentions(yaml_text, backticked=False)
@@ -123,9 +175,16 @@ def test_a_wrong_mention_is_reported():
     text = ("The loader is `softhand_env/params.py`, the hand `configs/hand/paper.yaml`, see "
             "`docs/nowhere.md`; run `python -m agents.no_such_command` or python -m "
             "softhand_env.physics (a package without __main__). Fine: `configs/tasks/<task>.yaml`, "
-            "`out/demo/summary.md`, `x/theta`, python -m agents.demo, `docs/design.md`.")
+            "`out/demo/summary.md`, `x/theta`, python -m agents.demo, `docs/design.md`. Names: "
+            "`agents.loading.MODELS_DIR`, {py:func}`softhand_env.tools.simulate.run_paper_motion`"
+            ", fine: `agents.runs.layout.MODELS_DIR`, {py:class}`softhand_env.physics.HandPhysics`"
+            ", `agents.sb3.curriculum.set_goal_scale(venv, s)`, `agents.<name>`.\n"
+            "    python -c \"from agents.hyperparams import config_path; import agents.loading\"\n"
+            "    python -c \"from agents.runs.hyperparams import config_path; import agents\"\n")
     assert missing(text) == ["path: softhand_env/params.py", "path: configs/hand/paper.yaml",
                              "path: docs/nowhere.md", "module: agents.no_such_command",
-                             "module: softhand_env.physics"]
+                             "module: softhand_env.physics", "name: agents.loading.MODELS_DIR",
+                             "name: softhand_env.tools.simulate.run_paper_motion",
+                             "name: agents.hyperparams.config_path", "name: agents.loading"]
     comment = "key: 1.0   # see softhand_env/params.py and docs/design.md\n"
     assert missing(comment, yaml_comments=True) == ["path: softhand_env/params.py"]
