@@ -405,12 +405,31 @@ def _gram(Wl, l, S):
 
 
 @njit(cache=True, error_model="numpy")
+def _spd_solve(S, v, out):
+    """out = S^-1 v for a symmetric positive definite (4, 4) S (Gaussian elimination without
+    pivoting; S and v are overwritten)."""
+    for k in range(4):
+        for r in range(k + 1, 4):
+            f = S[r, k] / S[k, k]
+            for c in range(k + 1, 4):
+                S[r, c] -= f * S[k, c]
+            v[r] -= f * v[k]
+    for r in range(3, -1, -1):
+        acc = v[r]
+        for c in range(r + 1, 4):
+            acc -= S[r, c] * out[c]
+        out[r] = acc / S[r, r]
+
+
+@njit(cache=True, error_model="numpy")
 def _project_lanes(Yl, Pl, Wl, Il, nl):
-    """Project the states of lanes 0..nl-1 onto the constraint manifold, in place: one
-    M^-1-weighted Newton step on C^H(q) = 0, ``dq = -M^-1 Phi_H^T (Phi_H M^-1 Phi_H^T)^-1
-    C^H``, then (with Phi at the new q) the momenta onto Phi p = 0 (C^H-dot = 0, C^N = 0),
-    ``dp = M^-1 Phi^T mu``, ``mu = -(Phi M^-1 Phi^T)^-1 Phi p``, whose contact impulse mu
-    (N s) is added to Il."""
+    """Project the states of lanes 0..nl-1 onto the constraint manifold, in place.
+
+    Positions: one Newton step on C^H(q) = 0 along displacements that do not roll the
+    contacts (Phi^N dq = 0: the rolling history is kept), the M-weighted shortest one,
+    ``dq = M^-1 Phi^T nu``, ``(Phi M^-1 Phi^T) nu = [-C^H; 0]``. Momenta (with Phi at the new
+    q): onto Phi p = 0 (C^H-dot = 0, C^N = 0), ``dp = M^-1 Phi^T mu``,
+    ``mu = -(Phi M^-1 Phi^T)^-1 Phi p``, whose contact impulse mu (N s) is added to Il."""
     L = LANES
     S = np.empty((4, 4))
     v = np.empty(4)
@@ -420,15 +439,16 @@ def _project_lanes(Yl, Pl, Wl, Il, nl):
         ph = _O_PHI * L + l
         mi = _O_MI * L + l
         _gram(Wl, l, S)
-        det = S[0, 0] * S[1, 1] - S[0, 1] * S[1, 0]
-        c1 = Wl[_O_CH * L + l]
-        c2 = Wl[(_O_CH + 1) * L + l]
-        n1 = (S[1, 1] * c1 - S[0, 1] * c2) / det
-        n2 = (S[0, 0] * c2 - S[1, 0] * c1) / det
+        v[0] = -Wl[_O_CH * L + l]
+        v[1] = -Wl[(_O_CH + 1) * L + l]
+        v[2] = 0.0
+        v[3] = 0.0
+        _spd_solve(S, v, mu)
         for j in range(NQ):
-            Yl[j * L + l] -= Wl[mi + j * L] * (
-                Wl[ph + j * L] * n1 + Wl[ph + (NQ + j) * L] * n2
-            )
+            acc = 0.0
+            for a in range(4):
+                acc += Wl[ph + (NQ * a + j) * L] * mu[a]
+            Yl[j * L + l] += Wl[mi + j * L] * acc
     _phi_lanes(Yl, Pl, Wl, nl)
     for l in range(nl):
         ph = _O_PHI * L + l
@@ -438,26 +458,15 @@ def _project_lanes(Yl, Pl, Wl, Il, nl):
             acc = 0.0
             for j in range(NQ):
                 acc += Wl[ph + (NQ * a + j) * L] * Yl[(NQ + j) * L + l]
-            v[a] = acc
-        # mu = -S^-1 v (Gaussian elimination; S is symmetric positive definite)
-        for k in range(4):
-            for r in range(k + 1, 4):
-                f = S[r, k] / S[k, k]
-                for c in range(k + 1, 4):
-                    S[r, c] -= f * S[k, c]
-                v[r] -= f * v[k]
-        for r in range(3, -1, -1):
-            acc = v[r]
-            for c in range(r + 1, 4):
-                acc -= S[r, c] * mu[c]
-            mu[r] = acc / S[r, r]
+            v[a] = -acc
+        _spd_solve(S, v, mu)
         for a in range(4):
-            Il[a * L + l] -= mu[a]
+            Il[a * L + l] += mu[a]
         for j in range(NQ):
             acc = 0.0
             for a in range(4):
                 acc += Wl[ph + (NQ * a + j) * L] * mu[a]
-            Yl[(NQ + j) * L + l] -= Wl[mi + j * L] * acc
+            Yl[(NQ + j) * L + l] += Wl[mi + j * L] * acc
 
 
 @njit(cache=True)
