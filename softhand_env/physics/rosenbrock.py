@@ -138,238 +138,225 @@ def rhs_evaluations(T: float, H: float) -> int:
     return 2 * len(step_schedule(T, H)) + 1
 
 
-# rows of the per-lane step matrices (structure of arrays, row r of lane l at [r*LANES + l])
-_O_PHI = 0  # Phi (4 x 9): holonomic rows 0-1, rolling rows 2-3
-_O_RQ = _O_PHI + 36  # R_q (4 x 9)
-_O_RZ = _O_RQ + 36  # R_z (4 x 2)
-_O_RP = _O_RZ + 8  # R' = R_p + g R_q + g^2 R_z S (4 x 9)
-_O_MI = _O_RP + 36  # M^-1 (9)
-_O_DI = _O_MI + 9  # Delta^-1 (9)
-_O_NLU = _O_DI + 9  # LU of N (4 x 4), inverse pivots on the diagonal
-_O_MK = _O_NLU + 16  # M^-1 Kp on theta_1, theta_2 (2)
-_O_MZ = _O_MK + 2  # M^-1 Ki on theta_1, theta_2 (2)
-_O_CH = _O_MZ + 2  # C^H (2) at the state of _phi_lanes
-_NW = _O_CH + 2
+# per-lane step data W[l, :] (one row per lane of a block)
+_W_PHI = 0  # Phi (4 x 9, row-major): holonomic rows 0-1, rolling rows 2-3
+_W_MI = 36  # M^-1 (9)
+_W_E = 45  # e = M^-1 D + g M^-1 Kp + g^2 M^-1 Ki (the last two on theta_1, theta_2) (9)
+_W_DI = 54  # Delta^-1 = 1 / (1 + g e) (9)
+_W_KAP = 63  # kappa = [2 alpha + g alpha^2 (x2), beta (x2)] (4)
+_W_LDL = 67  # G = Phi diag(M^-1 Delta^-1) Phi^T = L D L^T: L10 L20 L30 L21 L31 L32, 1/D (10)
+_W_CH = 77  # C^H (2) at the state of the last Phi
+_NW = 79
 
 
 @njit(cache=True, error_model="numpy", fastmath=_FASTMATH)
-def _phi_lanes(Yl, Pl, Wl, nl):
-    """Constraint Jacobian Phi (4 x 9, :func:`.model.constraint_terms`) of lanes 0..nl-1 into
-    rows _O_PHI.. of Wl, and M^-1 into rows _O_MI.."""
-    for l in range(nl):
-        y = (
-            Yl[0 * LANES + l], Yl[1 * LANES + l], Yl[2 * LANES + l], Yl[3 * LANES + l],
-            Yl[4 * LANES + l], Yl[5 * LANES + l], Yl[6 * LANES + l], Yl[7 * LANES + l],
-            Yl[8 * LANES + l], Yl[9 * LANES + l], Yl[10 * LANES + l], Yl[11 * LANES + l],
-            Yl[12 * LANES + l], Yl[13 * LANES + l], Yl[14 * LANES + l], Yl[15 * LANES + l],
-            Yl[16 * LANES + l], Yl[17 * LANES + l], Yl[18 * LANES + l], Yl[19 * LANES + l],
-        )
-        prm = (
-            Pl[0 * LANES + l], Pl[1 * LANES + l], Pl[2 * LANES + l], Pl[3 * LANES + l],
-            Pl[4 * LANES + l], Pl[5 * LANES + l], Pl[6 * LANES + l], Pl[7 * LANES + l],
-            Pl[8 * LANES + l], Pl[9 * LANES + l], Pl[10 * LANES + l], Pl[11 * LANES + l],
-            Pl[12 * LANES + l], Pl[13 * LANES + l], Pl[14 * LANES + l], Pl[15 * LANES + l],
-            Pl[16 * LANES + l], Pl[17 * LANES + l], Pl[18 * LANES + l], Pl[19 * LANES + l],
-            Pl[20 * LANES + l], Pl[21 * LANES + l], Pl[22 * LANES + l],
-        )
-        so, co = sincos(y[TH_OBJ])
-        s1, A1, B1, E1, F1, _, _, CH1 = _finger(y, prm, 0, co, so)[:8]
-        s2, A2, B2, E2, F2, _, _, CH2 = _finger(y, prm, 1, co, so)[:8]
-        Wl[_O_CH * LANES + l] = CH1
-        Wl[(_O_CH + 1) * LANES + l] = CH2
-        o = _O_PHI * LANES + l
-        for j in range(36):
-            Wl[o + j * LANES] = 0.0
-        # row r, column j at o + (9 r + j) LANES
-        Wl[o + 0 * LANES] = s1 * co
-        Wl[o + 1 * LANES] = s1 * so
-        Wl[o + 2 * LANES] = A1
-        Wl[o + (TH_1) * LANES] = B1
-        Wl[o + (DN_1) * LANES] = 1.0
-        Wl[o + 9 * LANES] = s2 * co
-        Wl[o + 10 * LANES] = s2 * so
-        Wl[o + 11 * LANES] = A2
-        Wl[o + (9 + TH_1 + 1) * LANES] = B2
-        Wl[o + (9 + DN_1 + 1) * LANES] = 1.0
-        Wl[o + 18 * LANES] = -so
-        Wl[o + 19 * LANES] = co
-        Wl[o + 20 * LANES] = E1
-        Wl[o + (18 + TH_1) * LANES] = F1
-        Wl[o + (18 + DT_1) * LANES] = 1.0
-        Wl[o + 27 * LANES] = -so
-        Wl[o + 28 * LANES] = co
-        Wl[o + 29 * LANES] = E2
-        Wl[o + (27 + TH_1 + 1) * LANES] = F2
-        Wl[o + (27 + DT_1 + 1) * LANES] = 1.0
-        mi = _O_MI * LANES + l
-        Wl[mi + 0 * LANES] = 1.0 / prm[P_MOBJ]
-        Wl[mi + 1 * LANES] = 1.0 / prm[P_MOBJ]
-        Wl[mi + 2 * LANES] = 1.0 / prm[P_IOBJ]
-        Wl[mi + 3 * LANES] = 1.0 / prm[P_I1]
-        Wl[mi + 4 * LANES] = 1.0 / prm[P_I2]
-        for j in range(5, NQ):
-            Wl[mi + j * LANES] = 1.0 / prm[P_MDEF]
+def _load(Yl, Pl, l, y, prm):
+    """Copy lane ``l`` of the blocks Yl, Pl into y (NY,) and prm (N_PARAMS,)."""
+    for j in range(NY):
+        y[j] = Yl[j * LANES + l]
+    for j in range(N_PARAMS):
+        prm[j] = Pl[j * LANES + l]
 
 
-@njit(cache=True, error_model="numpy")
-def _setup_lanes(Yl, Pl, g, Wl, S, nl):
-    """The step matrices of W = I - g J_W for g = gamma h at the states Yl (rows of Wl, see
-    the module doc); S (16*LANES) scratch for Phi M^-1 Phi^T."""
-    _phi_lanes(Yl, Pl, Wl, nl)
-    L = LANES
+@njit(cache=True, error_model="numpy", fastmath=_FASTMATH)
+def _phi(y, prm, w):
+    """Phi (:func:`.model.constraint_terms`), M^-1 and C^H of state y into the row w (_NW,)."""
+    so, co = sincos(y[TH_OBJ])
+    s1, A1, B1, E1, F1, _, _, CH1 = _finger(y, prm, 0, co, so)[:8]
+    s2, A2, B2, E2, F2, _, _, CH2 = _finger(y, prm, 1, co, so)[:8]
+    for j in range(36):
+        w[_W_PHI + j] = 0.0
+    w[0] = s1 * co
+    w[1] = s1 * so
+    w[2] = A1
+    w[TH_1] = B1
+    w[DN_1] = 1.0
+    w[9] = s2 * co
+    w[10] = s2 * so
+    w[11] = A2
+    w[9 + TH_1 + 1] = B2
+    w[9 + DN_1 + 1] = 1.0
+    w[18] = -so
+    w[19] = co
+    w[20] = E1
+    w[18 + TH_1] = F1
+    w[18 + DT_1] = 1.0
+    w[27] = -so
+    w[28] = co
+    w[29] = E2
+    w[27 + TH_1 + 1] = F2
+    w[27 + DT_1 + 1] = 1.0
+    w[_W_MI + 0] = 1.0 / prm[P_MOBJ]
+    w[_W_MI + 1] = 1.0 / prm[P_MOBJ]
+    w[_W_MI + 2] = 1.0 / prm[P_IOBJ]
+    w[_W_MI + 3] = 1.0 / prm[P_I1]
+    w[_W_MI + 4] = 1.0 / prm[P_I2]
+    for j in range(5, NQ):
+        w[_W_MI + j] = 1.0 / prm[P_MDEF]
+    w[_W_CH] = CH1
+    w[_W_CH + 1] = CH2
+
+
+@njit(cache=True, error_model="numpy", fastmath=_FASTMATH, inline="always")
+def _ldl4(G, w, o):
+    """L D L^T of the symmetric 4 x 4 G (only G[i, j], j <= i, read) into w[o:o+10]; a
+    pivot <= 0 gives NaN (the state is then flagged non-finite)."""
+    d0 = G[0, 0]
+    i0 = 1.0 / d0 if d0 > 0.0 else math.nan
+    L10 = G[1, 0] * i0
+    L20 = G[2, 0] * i0
+    L30 = G[3, 0] * i0
+    d1 = G[1, 1] - L10 * G[1, 0]
+    i1 = 1.0 / d1 if d1 > 0.0 else math.nan
+    a21 = G[2, 1] - L20 * G[1, 0]
+    a31 = G[3, 1] - L30 * G[1, 0]
+    L21 = a21 * i1
+    L31 = a31 * i1
+    d2 = G[2, 2] - L20 * G[2, 0] - L21 * a21
+    i2 = 1.0 / d2 if d2 > 0.0 else math.nan
+    a32 = G[3, 2] - L30 * G[2, 0] - L31 * a21
+    L32 = a32 * i2
+    d3 = G[3, 3] - L30 * G[3, 0] - L31 * a31 - L32 * a32
+    i3 = 1.0 / d3 if d3 > 0.0 else math.nan
+    w[o] = L10
+    w[o + 1] = L20
+    w[o + 2] = L30
+    w[o + 3] = L21
+    w[o + 4] = L31
+    w[o + 5] = L32
+    w[o + 6] = i0
+    w[o + 7] = i1
+    w[o + 8] = i2
+    w[o + 9] = i3
+
+
+@njit(cache=True, error_model="numpy", fastmath=_FASTMATH, inline="always")
+def _ldl4_solve(w, o, v):
+    """Solve (L D L^T) x = v in place, the factors at w[o:o+10]."""
+    v[1] -= w[o] * v[0]
+    v[2] -= w[o + 1] * v[0] + w[o + 3] * v[1]
+    v[3] -= w[o + 2] * v[0] + w[o + 4] * v[1] + w[o + 5] * v[2]
+    v[3] *= w[o + 9]
+    v[2] = v[2] * w[o + 8] - w[o + 5] * v[3]
+    v[1] = v[1] * w[o + 7] - w[o + 3] * v[2] - w[o + 4] * v[3]
+    v[0] = v[0] * w[o + 6] - w[o] * v[1] - w[o + 1] * v[2] - w[o + 2] * v[3]
+
+
+@njit(cache=True, error_model="numpy", fastmath=_FASTMATH, inline="always")
+def _gram(w, weights, o, G):
+    """G = Phi diag(w[o:o+9] * weights) Phi^T, lower triangle (4 x 4), Phi at w[0:36]."""
+    for a in range(4):
+        for b in range(a + 1):
+            acc = 0.0
+            for j in range(NQ):
+                acc += w[NQ * a + j] * w[NQ * b + j] * w[o + j] * weights[j]
+            G[a, b] = acc
+
+
+@njit(cache=True, error_model="numpy", fastmath=_FASTMATH)
+def _setup_lanes(Yl, Pl, g, W, fresh, nl):
+    """Step data of W = I - g J_W (module doc) for g = gamma h at the states Yl, into W
+    (LANES, _NW); ``fresh=False`` reuses Phi and M^-1 already in W for these states."""
+    y = np.empty(NY)
+    prm = np.empty(N_PARAMS)
+    G = np.empty((4, 4))
+    ones = np.ones(NQ)
     for l in range(nl):
-        Wl[(_O_MK + 0) * L + l] = Wl[(_O_MI + TH_1) * L + l] * Pl[P_KP * L + l]
-        Wl[(_O_MK + 1) * L + l] = Wl[(_O_MI + TH_1 + 1) * L + l] * Pl[P_KP * L + l]
-        Wl[(_O_MZ + 0) * L + l] = Wl[(_O_MI + TH_1) * L + l] * Pl[P_KI * L + l]
-        Wl[(_O_MZ + 1) * L + l] = Wl[(_O_MI + TH_1 + 1) * L + l] * Pl[P_KI * L + l]
-    # Delta = 1 + g M^-1 D + g^2 M^-1 Kp + g^3 M^-1 Ki (the last two on the finger angles)
-    for j in range(NQ):
-        for l in range(nl):
-            mi = Wl[(_O_MI + j) * L + l]
+        w = W[l]
+        _load(Yl, Pl, l, y, prm)
+        if fresh:
+            _phi(y, prm, w)
+        for j in range(NQ):
             if j == TH_1 or j == TH_1 + 1:
-                d = Pl[P_KD * L + l]
+                d = prm[P_KD]
+                stiff = g * prm[P_KP] + g * g * prm[P_KI]
             elif j == DN_1 or j == DN_1 + 1:
-                d = Pl[P_CN * L + l]
+                d = prm[P_CN]
+                stiff = 0.0
             elif j == DT_1 or j == DT_1 + 1:
-                d = Pl[P_CT * L + l]
+                d = prm[P_CT]
+                stiff = 0.0
             else:
                 d = 0.0
-            delta = 1.0 + g * mi * d
-            if j == TH_1 or j == TH_1 + 1:
-                i = j - TH_1
-                delta += g * g * Wl[(_O_MK + i) * L + l] + g * g * g * Wl[(_O_MZ + i) * L + l]
-            Wl[(_O_DI + j) * L + l] = 1.0 / delta
-    # R_q = Phi M^-1 K - [alpha^2 Phi^H; 0], R_z = Phi M^-1 Ki S^T,
-    # R' = (Phi M^-1 D - [2 alpha Phi^H; beta Phi^N]) + g R_q + g^2 R_z S
-    for r in range(4):
+                stiff = 0.0
+            e = w[_W_MI + j] * (d + stiff)
+            w[_W_E + j] = e
+            w[_W_DI + j] = 1.0 / (1.0 + g * e)
+        alpha = prm[P_ALPHA]
+        w[_W_KAP] = 2.0 * alpha + g * alpha * alpha
+        w[_W_KAP + 1] = w[_W_KAP]
+        w[_W_KAP + 2] = prm[P_BETA]
+        w[_W_KAP + 3] = prm[P_BETA]
         for j in range(NQ):
-            ph = (_O_PHI + NQ * r + j) * L
-            for l in range(nl):
-                phi = Wl[ph + l]
-                mi = Wl[(_O_MI + j) * L + l]
-                alpha = Pl[P_ALPHA * L + l]
-                if j == TH_1 or j == TH_1 + 1:
-                    d = Pl[P_KD * L + l]
-                    kq = Wl[(_O_MK + j - TH_1) * L + l]
-                elif j == DN_1 or j == DN_1 + 1:
-                    d = Pl[P_CN * L + l]
-                    kq = 0.0
-                elif j == DT_1 or j == DT_1 + 1:
-                    d = Pl[P_CT * L + l]
-                    kq = 0.0
-                else:
-                    d = 0.0
-                    kq = 0.0
-                if r < 2:
-                    rp = phi * (mi * d - 2.0 * alpha)
-                    rq = phi * (kq - alpha * alpha)
-                else:
-                    rp = phi * (mi * d - Pl[P_BETA * L + l])
-                    rq = phi * kq
-                Wl[(_O_RQ + NQ * r + j) * L + l] = rq
-                Wl[(_O_RP + NQ * r + j) * L + l] = rp + g * rq
-        for i in range(2):
-            for l in range(nl):
-                rz = Wl[(_O_PHI + NQ * r + TH_1 + i) * L + l] * Wl[(_O_MZ + i) * L + l]
-                Wl[(_O_RZ + 2 * r + i) * L + l] = rz
-                Wl[(_O_RP + NQ * r + TH_1 + i) * L + l] += g * g * rz
-    # N = Phi M^-1 Phi^T - g R' Delta^-1 M^-1 Phi^T, factorised without pivoting
-    for a in range(4):
-        for b in range(4):
-            for l in range(nl):
-                S[(4 * a + b) * L + l] = 0.0
-            for j in range(NQ):
-                pa = (_O_PHI + NQ * a + j) * L
-                pb = (_O_PHI + NQ * b + j) * L
-                ra = (_O_RP + NQ * a + j) * L
-                mj = (_O_MI + j) * L
-                dj = (_O_DI + j) * L
-                for l in range(nl):
-                    S[(4 * a + b) * L + l] += (
-                        (Wl[pa + l] - g * Wl[ra + l] * Wl[dj + l]) * Wl[mj + l] * Wl[pb + l]
-                    )
-    for k in range(4):
-        dk = (4 * k + k) * L
-        for l in range(nl):
-            piv = S[dk + l]
-            S[dk + l] = 1.0 / piv if piv != 0.0 else math.nan
-        for r in range(k + 1, 4):
-            dr = (4 * r + k) * L
-            for l in range(nl):
-                S[dr + l] *= S[dk + l]
-            for c in range(k + 1, 4):
-                drc = (4 * r + c) * L
-                dkc = (4 * k + c) * L
-                for l in range(nl):
-                    S[drc + l] -= S[dr + l] * S[dkc + l]
-    for i in range(16 * L):
-        Wl[_O_NLU * L + i] = S[i]
+            ones[j] = w[_W_DI + j]
+        _gram(w, ones, _W_MI, G)
+        _ldl4(G, w, _W_LDL)
 
 
-@njit(cache=True, error_model="numpy")
-def _solve_lanes(R, Wl, g, Kout, MU, C, nl):
+@njit(cache=True, error_model="numpy", fastmath=_FASTMATH)
+def _solve_lanes(R, W, Pl, g, Kout, MU, nl):
     """Solve W k = R (NY*LANES rows) per lane; Kout (NY*LANES) receives k, MU (4*LANES) the
-    multiplier stage L_W k; C (NQ*LANES) scratch."""
+    multiplier stage L_W k (module doc)."""
     L = LANES
-    # c = r_p - g M^-1 Kp r_q - g M^-1 Ki (r_z + g r_q) on the finger angles
-    for j in range(NQ):
-        for l in range(nl):
-            C[j * L + l] = R[(NQ + j) * L + l]
-    for i in range(2):
-        t = TH_1 + i
-        for l in range(nl):
-            rq = R[t * L + l]
-            C[t * L + l] -= g * Wl[(_O_MK + i) * L + l] * rq + g * Wl[(_O_MZ + i) * L + l] * (
-                R[(2 * NQ + i) * L + l] + g * rq
-            )
-    # N mu = R' Delta^-1 c + R_q r_q + R_z (r_z + g S r_q)
-    for a in range(4):
-        for l in range(nl):
-            MU[a * L + l] = 0.0
+    c = np.empty(NQ)
+    v = np.empty(4)
+    for l in range(nl):
+        w = W[l]
+        kp_gain = Pl[P_KP * L + l]
+        ki_gain = Pl[P_KI * L + l]
+        alpha = Pl[P_ALPHA * L + l]
         for j in range(NQ):
-            ra = (_O_RP + NQ * a + j) * L
-            qa = (_O_RQ + NQ * a + j) * L
-            dj = (_O_DI + j) * L
-            for l in range(nl):
-                MU[a * L + l] += Wl[ra + l] * Wl[dj + l] * C[j * L + l] + Wl[qa + l] * R[j * L + l]
+            c[j] = R[(NQ + j) * L + l]
+        rzt0 = 0.0
+        rzt1 = 0.0
         for i in range(2):
-            za = (_O_RZ + 2 * a + i) * L
-            for l in range(nl):
-                MU[a * L + l] += Wl[za + l] * (R[(2 * NQ + i) * L + l] + g * R[(TH_1 + i) * L + l])
-    o = _O_NLU * L
-    for r in range(1, 4):
-        for c in range(r):
-            for l in range(nl):
-                MU[r * L + l] -= Wl[o + (4 * r + c) * L + l] * MU[c * L + l]
-    for r in range(3, -1, -1):
-        for c in range(r + 1, 4):
-            for l in range(nl):
-                MU[r * L + l] -= Wl[o + (4 * r + c) * L + l] * MU[c * L + l]
-        for l in range(nl):
-            MU[r * L + l] *= Wl[o + (4 * r + r) * L + l]
-    # k_p = Delta^-1 (c + g M^-1 Phi^T mu), k_q = r_q + g k_p, k_z = r_z + g S k_q
-    for j in range(NQ):
-        for l in range(nl):
-            s = 0.0
+            t = TH_1 + i
+            rq = R[t * L + l]
+            rzt = R[(2 * NQ + i) * L + l] + g * rq
+            mi = w[_W_MI + t]
+            c[t] -= g * mi * kp_gain * rq + g * mi * ki_gain * rzt
+            if i == 0:
+                rzt0 = rzt
+            else:
+                rzt1 = rzt
+        # rhs_a = sum_j Phi_aj [(e_j - kappa_a) Delta^-1_j c_j + (k_j - c2_a) r_q,j]
+        #         + sum_i Phi_a,theta_i M^-1 Ki (r_z,i + g r_q,theta_i)
+        for a in range(4):
+            kap = w[_W_KAP + a]
+            c2 = alpha * alpha if a < 2 else 0.0
+            acc = 0.0
+            for j in range(NQ):
+                phi = w[NQ * a + j]
+                if phi != 0.0:
+                    kq = w[_W_MI + j] * kp_gain if (j == TH_1 or j == TH_1 + 1) else 0.0
+                    acc += phi * ((w[_W_E + j] - kap) * w[_W_DI + j] * c[j]
+                                  + (kq - c2) * R[j * L + l])
+            acc += w[NQ * a + TH_1] * w[_W_MI + TH_1] * ki_gain * rzt0
+            acc += w[NQ * a + TH_1 + 1] * w[_W_MI + TH_1 + 1] * ki_gain * rzt1
+            v[a] = acc / (1.0 + g * kap)
+        _ldl4_solve(w, _W_LDL, v)
+        for a in range(4):
+            MU[a * L + l] = v[a]
+        for j in range(NQ):
+            acc = 0.0
             for a in range(4):
-                s += Wl[(_O_PHI + NQ * a + j) * L + l] * MU[a * L + l]
-            kp = Wl[(_O_DI + j) * L + l] * (C[j * L + l] + g * Wl[(_O_MI + j) * L + l] * s)
+                acc += w[NQ * a + j] * v[a]
+            kp = w[_W_DI + j] * (c[j] + g * w[_W_MI + j] * acc)
             Kout[(NQ + j) * L + l] = kp
             Kout[j * L + l] = R[j * L + l] + g * kp
-    for i in range(2):
-        for l in range(nl):
+        for i in range(2):
             Kout[(2 * NQ + i) * L + l] = R[(2 * NQ + i) * L + l] + g * Kout[(TH_1 + i) * L + l]
 
 
 @njit(cache=True, error_model="numpy")
-def _ros2_lanes(Yl, Pl, h, Wl, S, K1, K2, F1, F2, Tl, C, I1, I2, Il, nl):
+def _ros2_lanes(Yl, Pl, h, W, fresh, K1, K2, F1, F2, Tl, I1, I2, Il, nl):
     """One ROS2 step of every lane in place; F1 (_NK*LANES) must hold f(Yl) on entry (the
     stage-1 evaluation, also the source of the step's residuals); adds the step's impulses to
-    Il (4*LANES)."""
+    Il (4*LANES). ``fresh``: Phi in W is not that of Yl yet."""
     g = GAMMA * h
     L = LANES
-    _setup_lanes(Yl, Pl, g, Wl, S, nl)
-    _solve_lanes(F1, Wl, g, K1, I1, C, nl)
+    _setup_lanes(Yl, Pl, g, W, fresh, nl)
+    _solve_lanes(F1, W, Pl, g, K1, I1, nl)
     # multiplier-integral stage 1: lambda(y_n) + g L_W k1
     for r in range(4):
         for l in range(nl):
@@ -379,7 +366,7 @@ def _ros2_lanes(Yl, Pl, h, Wl, S, K1, K2, F1, F2, Tl, C, I1, I2, Il, nl):
     _rhs_lanes(Tl, Pl, F2, nl)
     for i in range(NY * L):
         F2[i] = F2[i] - 2.0 * K1[i]
-    _solve_lanes(F2, Wl, g, K2, I2, C, nl)
+    _solve_lanes(F2, W, Pl, g, K2, I2, nl)
     for r in range(4):
         for l in range(nl):
             I2[r * L + l] = F2[(_R_LAM + r) * L + l] - 2.0 * I1[r * L + l] + g * I2[r * L + l]
@@ -389,84 +376,55 @@ def _ros2_lanes(Yl, Pl, h, Wl, S, K1, K2, F1, F2, Tl, C, I1, I2, Il, nl):
         Il[i] += 1.5 * h * I1[i] + 0.5 * h * I2[i]
 
 
-@njit(cache=True, error_model="numpy")
-def _gram(Wl, l, S):
-    """S (4, 4) = Phi M^-1 Phi^T of lane ``l`` from the rows of Wl (after _phi_lanes)."""
-    L = LANES
-    ph = _O_PHI * L + l
-    mi = _O_MI * L + l
-    for a in range(4):
-        for b in range(a + 1):
-            acc = 0.0
-            for j in range(NQ):
-                acc += Wl[ph + (NQ * a + j) * L] * Wl[mi + j * L] * Wl[ph + (NQ * b + j) * L]
-            S[a, b] = acc
-            S[b, a] = acc
-
-
-@njit(cache=True, error_model="numpy")
-def _spd_solve(S, v, out):
-    """out = S^-1 v for a symmetric positive definite (4, 4) S (Gaussian elimination without
-    pivoting; S and v are overwritten)."""
-    for k in range(4):
-        for r in range(k + 1, 4):
-            f = S[r, k] / S[k, k]
-            for c in range(k + 1, 4):
-                S[r, c] -= f * S[k, c]
-            v[r] -= f * v[k]
-    for r in range(3, -1, -1):
-        acc = v[r]
-        for c in range(r + 1, 4):
-            acc -= S[r, c] * out[c]
-        out[r] = acc / S[r, r]
-
-
-@njit(cache=True, error_model="numpy")
-def _project_lanes(Yl, Pl, Wl, Il, nl):
+@njit(cache=True, error_model="numpy", fastmath=_FASTMATH)
+def _project_lanes(Yl, Pl, W, Il, nl):
     """Project the states of lanes 0..nl-1 onto the constraint manifold, in place.
 
     Positions: one Newton step on C^H(q) = 0 along displacements that do not roll the
     contacts (Phi^N dq = 0: the rolling history is kept), the M-weighted shortest one,
     ``dq = M^-1 Phi^T nu``, ``(Phi M^-1 Phi^T) nu = [-C^H; 0]``. Momenta (with Phi at the new
     q): onto Phi p = 0 (C^H-dot = 0, C^N = 0), ``dp = M^-1 Phi^T mu``,
-    ``mu = -(Phi M^-1 Phi^T)^-1 Phi p``, whose contact impulse mu (N s) is added to Il."""
+    ``mu = -(Phi M^-1 Phi^T)^-1 Phi p``, whose contact impulse mu (N s) is added to Il. W
+    then holds Phi, M^-1 and C^H of the projected positions."""
     L = LANES
-    S = np.empty((4, 4))
+    y = np.empty(NY)
+    prm = np.empty(N_PARAMS)
+    G = np.empty((4, 4))
     v = np.empty(4)
-    mu = np.empty(4)
-    _phi_lanes(Yl, Pl, Wl, nl)
+    ones = np.ones(NQ)
     for l in range(nl):
-        ph = _O_PHI * L + l
-        mi = _O_MI * L + l
-        _gram(Wl, l, S)
-        v[0] = -Wl[_O_CH * L + l]
-        v[1] = -Wl[(_O_CH + 1) * L + l]
+        w = W[l]
+        _load(Yl, Pl, l, y, prm)
+        _phi(y, prm, w)
+        _gram(w, ones, _W_MI, G)
+        _ldl4(G, w, _W_LDL)
+        v[0] = -w[_W_CH]
+        v[1] = -w[_W_CH + 1]
         v[2] = 0.0
         v[3] = 0.0
-        _spd_solve(S, v, mu)
+        _ldl4_solve(w, _W_LDL, v)
         for j in range(NQ):
             acc = 0.0
             for a in range(4):
-                acc += Wl[ph + (NQ * a + j) * L] * mu[a]
-            Yl[j * L + l] += Wl[mi + j * L] * acc
-    _phi_lanes(Yl, Pl, Wl, nl)
-    for l in range(nl):
-        ph = _O_PHI * L + l
-        mi = _O_MI * L + l
-        _gram(Wl, l, S)
+                acc += w[NQ * a + j] * v[a]
+            y[j] += w[_W_MI + j] * acc
+            Yl[j * L + l] = y[j]
+        _phi(y, prm, w)
+        _gram(w, ones, _W_MI, G)
+        _ldl4(G, w, _W_LDL)
         for a in range(4):
             acc = 0.0
             for j in range(NQ):
-                acc += Wl[ph + (NQ * a + j) * L] * Yl[(NQ + j) * L + l]
+                acc += w[NQ * a + j] * y[NQ + j]
             v[a] = -acc
-        _spd_solve(S, v, mu)
+        _ldl4_solve(w, _W_LDL, v)
         for a in range(4):
-            Il[a * L + l] += mu[a]
+            Il[a * L + l] += v[a]
         for j in range(NQ):
             acc = 0.0
             for a in range(4):
-                acc += Wl[ph + (NQ * a + j) * L] * mu[a]
-            Yl[(NQ + j) * L + l] += Wl[mi + j * L] * acc
+                acc += w[NQ * a + j] * v[a]
+            Yl[(NQ + j) * L + l] = y[NQ + j] + w[_W_MI + j] * acc
 
 
 @njit(cache=True)
@@ -477,14 +435,12 @@ def _advance_block(Y, U, PRM, n, H, ch_limit, DIAG, FLAGS, systems):
     nl = m if m <= 2 else (LANES if m > LANES // 2 else LANES // 2)
     Yl = np.empty(NY * LANES)
     Pl = np.empty(_NPU * LANES)
-    Wl = np.zeros(_NW * LANES)
-    S = np.zeros(16 * LANES)
+    W = np.zeros((LANES, _NW))
     K1 = np.zeros(NY * LANES)
     K2 = np.zeros(NY * LANES)
     F1 = np.zeros(_NK * LANES)
     F2 = np.zeros(_NK * LANES)
     Tl = np.empty(NY * LANES)
-    C = np.zeros(NQ * LANES)
     I1 = np.zeros(4 * LANES)
     I2 = np.zeros(4 * LANES)
     Il = np.zeros(4 * LANES)
@@ -509,8 +465,9 @@ def _advance_block(Y, U, PRM, n, H, ch_limit, DIAG, FLAGS, systems):
     for step in range(n_ramp + k_main):
         h = RAMP[step] * scale if step < n_ramp else h_main
         _rhs_lanes(Yl, Pl, F1, nl)
-        _ros2_lanes(Yl, Pl, h, Wl, S, K1, K2, F1, F2, Tl, C, I1, I2, Il, nl)
-        _project_lanes(Yl, Pl, Wl, Il, nl)
+        # Phi of the state: computed by the projection that ended the previous step
+        _ros2_lanes(Yl, Pl, h, W, step == 0, K1, K2, F1, F2, Tl, I1, I2, Il, nl)
+        _project_lanes(Yl, Pl, W, Il, nl)
         t += h
         if _lanes_suspect(Yl, Pl, CHM, CNM, F1, nl) == 0:
             continue
@@ -542,6 +499,8 @@ def _advance_block(Y, U, PRM, n, H, ch_limit, DIAG, FLAGS, systems):
                 _copy_lane(Yl, NY, src, l)
                 _copy_lane(Pl, _NPU, src, l)
                 _copy_lane(Il, 4, src, l)
+                for j in range(_NW):
+                    W[l, j] = W[src, j]
     if n_live == 0:
         return
     k = np.empty((5, NY))
@@ -694,19 +653,17 @@ def ros2_step(y, u, prm, h):
         Pl[j * LANES] = prm[j]
     Pl[_R_U * LANES] = u[0]
     Pl[(_R_U + 1) * LANES] = u[1]
-    Wl = np.zeros(_NW * LANES)
-    S = np.zeros(16 * LANES)
+    W = np.zeros((LANES, _NW))
     K1 = np.zeros(NY * LANES)
     K2 = np.zeros(NY * LANES)
     F1 = np.zeros(_NK * LANES)
     F2 = np.zeros(_NK * LANES)
     Tl = np.zeros(NY * LANES)
-    C = np.zeros(NQ * LANES)
     I1 = np.zeros(4 * LANES)
     I2 = np.zeros(4 * LANES)
     Il = np.zeros(4 * LANES)
     _rhs_lanes(Yl, Pl, F1, 1)
-    _ros2_lanes(Yl, Pl, h, Wl, S, K1, K2, F1, F2, Tl, C, I1, I2, Il, 1)
-    _project_lanes(Yl, Pl, Wl, Il, 1)
+    _ros2_lanes(Yl, Pl, h, W, True, K1, K2, F1, F2, Tl, I1, I2, Il, 1)
+    _project_lanes(Yl, Pl, W, Il, 1)
     for j in range(NY):
         y[j] = Yl[j * LANES]
