@@ -141,14 +141,14 @@ def compare_integrators(steps: int, n_vec: int, repeats: int,
     rk4_r, _ = rhs_per_simulated_second(dt=5e-5)
     figure("RHS evaluations per simulated s (Random ids)", rk4_r, fast, cost=True)
     single = [bench_single(COMPARE_ID, steps, repeats, hand_overrides=o) for o in (None, FAST)]
-    figure(f"single env {COMPARE_ID} (env steps/s)", *single)
+    figure(f"single env {COMPARE_ID} (env steps/s)", single[0], single[1])
     vsteps = max(steps // n_vec, 4)
     vec = [bench_vector(COMPARE_ID, "vector_entry_point", n_vec, vsteps, repeats,
                         hand_overrides=o) for o in (None, FAST)]
-    figure(f"native vector env N={n_vec} (env steps/s)", *vec)
+    figure(f"native vector env N={n_vec} (env steps/s)", vec[0], vec[1])
     rand = [bench_single(COMPARE_RANDOM_ID, steps, repeats, **kw)
             for kw in ({}, {"hand_overrides": FAST})]
-    figure(f"single env {COMPARE_RANDOM_ID} (env steps/s)", *rand)
+    figure(f"single env {COMPARE_RANDOM_ID} (env steps/s)", rand[0], rand[1])
     return ratios
 
 
@@ -167,15 +167,17 @@ def _print_comparison(steps: int, n_vec: int, repeats: int, mujoco_steps: int) -
     # simulated seconds per wall second, single env, beside MuJoCo's anchors
     import gymnasium as gym
 
+    probe: Any = gym.make(COMPARE_ID).unwrapped
+    dt = float(probe.dt)
+    probe.close()
     for label, kw in (("rk4", None), ("ros2", FAST)):
         rate = bench_single(COMPARE_ID, steps, repeats, hand_overrides=kw)
-        dt = gym.make(COMPARE_ID).unwrapped.dt
         print(f"{COMPARE_ID + ' ' + label:<34}{rate * dt:>10,.0f} simulated s / wall s")
-    for env_id, rate in bench_mujoco.bench_anchors(mujoco_steps, repeats).items():
-        if rate is None:
+    for env_id, anchor in bench_mujoco.bench_anchors(mujoco_steps, repeats).items():
+        if anchor is None:
             print(f"{env_id:<34}{'skipped':>10}   (mujoco is not installed)")
         else:
-            print(f"{env_id:<34}{rate:>10,.0f} simulated s / wall s")
+            print(f"{env_id:<34}{anchor:>10,.0f} simulated s / wall s")
 
 
 def main(argv: list[str] | None = None) -> None:

@@ -11,6 +11,7 @@ from __future__ import annotations
 import argparse
 import importlib.util
 import time
+from typing import Any
 
 import numpy as np
 
@@ -32,7 +33,8 @@ def bench_simulated_rate(env_id: str, steps: int, repeats: int) -> float:
     env.reset(seed=0)
     env.action_space.seed(0)
     actions = np.array([env.action_space.sample() for _ in range(steps)])
-    dt = float(env.unwrapped.dt)
+    base: Any = env.unwrapped
+    dt = float(base.dt)
     best = 0.0
     for _ in range(repeats):
         env.reset(seed=0)

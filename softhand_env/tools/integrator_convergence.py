@@ -101,8 +101,9 @@ def main(argv: list[str] | None = None) -> None:
         print(name)
         for h, pos, ang in rows:
             print(f"  step {h * 1e3:8.4f} ms   position {pos:.3e} mm   angles {ang:.3e} deg")
-        print("  orders (position):", ", ".join(f"{p:.2f}" for p in orders(steps, [r[1] for r in rows])))
-        print("  orders (angles):  ", ", ".join(f"{p:.2f}" for p in orders(steps, [r[2] for r in rows])))
+        for label, col in (("position", 1), ("angles", 2)):
+            p = orders(steps, [r[col] for r in rows])
+            print(f"  orders ({label}):", ", ".join(f"{x:.2f}" for x in p))
     if args.out:
         plot(data, args.out)
         print(f"wrote {args.out}")
