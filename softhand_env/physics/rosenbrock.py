@@ -5,26 +5,44 @@ The chapter-5 model is stiff, not fast: Baumgarte's stabilisation puts a double 
 Kd and the fingertip viscosity on the light finger) sits near -8.4e3 /s, while the motion
 itself lives below about 700 /s. Classic RK4 must resolve the stiff roots (0.1 ms); the
 two-stage Rosenbrock-W method ROS2 (Verwer, Spee, Blom and Hundsdorfer, SIAM J. Sci. Comput.
-20, 1999) with gamma = 1 + 1/sqrt(2) is L-stable and of order 2 for *any* matrix W in place of
-the Jacobian, so one Jacobian serves a whole call::
+20, 1999) with gamma = 1 + 1/sqrt(2) is L-stable and of order 2 for *any* matrix J_W in place
+of the Jacobian, so J_W may be its stiff part alone::
 
-    W = I - gamma h J,      W k1 = f(y_n),      W k2 = f(y_n + h k1) - 2 k1,
+    W = I - gamma h J_W,    W k1 = f(y_n),      W k2 = f(y_n + h k1) - 2 k1,
     y_{n+1} = y_n + 3/2 h k1 + 1/2 h k2.
 
-Jacobian and linear algebra
----------------------------
-``J = df/dy`` of :func:`.model.csm_rhs` is taken once per call, at the state the call starts
-from, by forward differences of the compiled right-hand side (20 extra evaluations; the
-set-points enter f additively through the PID, so J does not depend on them). The rows of
-dq/dt = p and dz/dt = theta - theta^d are exact, which reduces ``W k = r`` to a 9 x 9 system
-for the momenta (``g = gamma h``)::
+The matrix W and its solve
+--------------------------
+``J_W`` is the stiff part of the Jacobian of :func:`.model.csm_rhs`, analytic and rebuilt every
+step from the constraint Jacobian Phi at y_n (a Jacobian reused over a control step is not good
+enough: after a set-point jump the state moves too far within one). With
+``lambda = S^-1 (-gamma - Phi M^-1 f)`` and S = Phi M^-1 Phi^T, its momentum rows are
+``dp'/dy = -diag + M^-1 Phi^T dlambda/dy`` with
 
-    (I - g J_pp - g^2 J_pq - g^3 J_pz S) k_p = r_p + g J_pq r_q + g J_pz (r_z + g S r_q),
-    k_q = r_q + g k_p,     k_z = r_z + g S k_q,
+    dlambda/dp = S^-1 (Phi M^-1 D - [2 alpha Phi^H; beta Phi^N]),
+    dlambda/dq = S^-1 (Phi M^-1 K - [alpha^2 Phi^H; 0]),   dlambda/dz = S^-1 Phi M^-1 Ki S^T
 
-(S picks theta_1, theta_2 out of q). The 9 x 9 matrix is LU factorised without pivoting
-(its eigenvalues are 1 - g lambda with Re >= 1 for a dissipative linearisation; a zero or
-non-finite pivot yields NaN and the state is flagged non-finite) once per step size.
+(D: Kd on theta_i, c_n on d_n, c_t on d_t; K: Kp on theta_i; S^T maps z_i to theta_i); the
+rows of dq/dt = p and dz/dt = theta - theta^d are exact. The elastic stiffness and the
+geometric terms (dPhi/dq times the multipliers) are left out; the W-method stays of order 2,
+and :mod:`softhand_env.physics.stability` checks the stability of the step as implemented. With
+``g = gamma h``, ``e = M^-1 (D + g K + g^2 Ki)`` and ``Delta = 1 + g e`` (diagonal), eliminating
+k_q = r_q + g k_p and k_z = r_z + g S k_q leaves for the momenta a diagonal system plus a rank-4
+term, solved through the 4 x 4 multiplier stage mu = dlambda/dy k::
+
+    diag(1 + g kappa) G mu = sum_j Phi_j [(e_j - kappa) Delta_j^-1 c_j + (k_j - c2) r_q,j] + ...,
+    G = Phi diag(M^-1 Delta^-1) Phi^T,   k_p = Delta^-1 (c + g M^-1 Phi^T mu)
+
+(kappa = 2 alpha + g alpha^2 on the holonomic rows, beta on the rolling ones; c is r_p with
+the PID terms of r_q, r_z; see :func:`_solve_lanes`). G is symmetric positive definite and
+factorised as L D L^T; a pivot <= 0 gives NaN and the state is flagged non-finite.
+
+Projection
+----------
+After every step the state is put back on the constraint manifold (:func:`_project_lanes`):
+one Newton step on C^H = 0 along displacements that keep the rolling history (Phi^N dq = 0),
+then the momenta onto Phi p = 0. The residual maxima are therefore round-off; the momentum the
+projection removes is a contact impulse and is added to the step's impulses.
 
 Step schedule
 -------------
@@ -39,18 +57,20 @@ scaled to T.
 Read-outs, failure checks and contact impulses
 ----------------------------------------------
 As in :mod:`.kernel` (same flags, same ``diag`` rows): the residual maxima are taken at the
-state each step starts from and at the final state; after every step the state is checked for
-a fatal flag and integration stops there (``diag[2]`` then reports the elapsed time in whole
-substeps of ``dt``, at least 1). The contact impulses are the integral of the multipliers
-with the quadrature ROS2 applies: the integral ``I = int lambda dt`` is integrated as four
-extra state components (``dI/dt = lambda(y)``, Jacobian row ``dlambda/dy`` from the same
-differences), whose stages are ``kI1 = lambda(y_n) + g L k1`` and
+state each step starts from (after the previous step's projection) and at the final state;
+after every step the state is checked for a fatal flag and integration stops there
+(``diag[2]`` then reports the elapsed time in whole substeps of ``dt``, at least 1). The
+contact impulses are the integral of the multipliers with the quadrature ROS2 applies (plus
+the projection's impulse): the integral ``I = int lambda dt`` is integrated as four
+extra state components (``dI/dt = lambda(y)``, with the rows dlambda/dy of J_W above), whose
+stages are ``kI1 = lambda(y_n) + g L k1`` and
 ``kI2 = lambda(y_n + h k1) - 2 kI1 + g L k2``, ``I += 3/2 h kI1 + 1/2 h kI2``.
 
 Batches: :func:`advance_batch` integrates blocks of :data:`.kernel.LANES` systems in the
-structure-of-arrays lanes of :mod:`.kernel` (the same right-hand side source), in parallel
-over blocks. A system integrated alone or in any batch follows the same arithmetic, so it
-ends bit for bit equal. All systems of a call must share ``dt`` (one schedule).
+structure-of-arrays lanes of :mod:`.kernel` (the same right-hand side source, vectorised; the
+step data, solves and projection run lane by lane in scalar code), in parallel over blocks.
+A system integrated alone or in any batch follows the same arithmetic, so it ends bit for
+bit equal. All systems of a call must share ``dt`` (one schedule).
 """
 
 from __future__ import annotations
