@@ -74,6 +74,7 @@ def bench_single(env_id: str, steps: int, repeats: int, **kwargs) -> float:
     base: Any = env.unwrapped  # a SoftHandEnv
     if not base.config.actions.normalize:
         raise ValueError("the benchmark uses normalised actions")
+    env.step(actions[0])  # warm-up: compiles the step path outside the timed runs
 
     def run() -> float:
         env.reset(seed=0)
