@@ -2,10 +2,11 @@
 
 :mod:`.params` (hand parameters, SI) -> :mod:`.contact` (chapter 2-3 fingertip models) ->
 :mod:`.model` (chapter-5 dynamic model as compiled functions) -> :mod:`.integrate` (RK
-tableaus) / :mod:`.kernel` (compiled RK4 kernels, one system or N in lanes) ->
+tableaus) / :mod:`.kernel` (compiled RK4 kernels, one system or N in lanes) /
+:mod:`.rosenbrock` (compiled ROS2 kernels at millisecond steps, ``integrator="ros2"``) ->
 :mod:`.failure` (failure classification) -> :mod:`.hand` (:class:`HandPhysics`: N hands,
 stepping, rollback, named read-outs); beside them :mod:`.friction` (friction ratio, tension and
-slip from the contact impulses), :mod:`.stability` (a-priori RK4 stability check) and
+slip from the contact impulses), :mod:`.stability` (a-priori stability check of RK4 and ROS2) and
 :mod:`.validity` (validated range of the contact model); :mod:`.motions` runs set-point
 sequences through :mod:`.hand` (the paper's motions 1-8); :mod:`.reference` is an independent
 plain-NumPy model for cross-checks.

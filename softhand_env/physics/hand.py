@@ -22,7 +22,7 @@ from typing import Any, NamedTuple
 import numpy as np
 from numba import njit
 
-from softhand_env.physics import friction, kernel
+from softhand_env.physics import friction, kernel, rosenbrock
 from softhand_env.physics.failure import REASONS, classify
 from softhand_env.physics.model import (
     DN_1,
@@ -214,6 +214,20 @@ def _step_on_this_thread(Y, U, PRM, TIME, n, ch_limit, dn_limit, base_limit):
 
 
 @njit(cache=True)
+def _step_ros2_on_this_thread(Y, U, PRM, TIME, n, H, ch_limit, dn_limit, base_limit):
+    """:func:`_step_on_this_thread` with the ROS2 kernel
+    (:func:`softhand_env.physics.rosenbrock.advance_batch_serial`) at step ``H`` (s)."""
+    N = Y.shape[0]
+    y_prev = Y.copy()
+    flags = np.zeros(N, dtype=np.int64)
+    diag = np.zeros((N, kernel.N_STEP_DIAG))
+    rosenbrock.advance_batch_serial(Y, U, PRM, n, H, ch_limit, diag, flags)
+    failed, grasped, reason = _finish_step(flags, Y, y_prev, PRM, diag, TIME, ch_limit,
+                                           dn_limit, base_limit)
+    return flags, diag, failed, grasped, reason
+
+
+@njit(cache=True)
 def _finish_step(FLAGS, Y, Y_PREV, PRM, DIAG, TIME, ch_limit, dn_limit, base_limit):
     """After the kernel: classify the hands (:func:`softhand_env.physics.failure.classify`, with the
     rollback of non-finite states to ``Y_PREV``) and advance TIME (N,) (s) by the substeps
@@ -278,8 +292,13 @@ class HandPhysics:
         Allowed reach of a contact circle past its fingertip base before it counts as a
         failure (1 = none; ``math.inf`` = never), see :func:`.contact.beyond_base`.
     check_stability : bool
-        Warn (``RuntimeWarning``) if ``params.dt`` is beyond RK4's stability limit
-        (:func:`warn_if_unstable`); also on :meth:`set_params`.
+        Warn (``RuntimeWarning``) if the step is beyond the stability limit of the
+        integrator ``params.integrator`` (:func:`warn_if_unstable`); also on
+        :meth:`set_params`.
+
+    The integrator (``params.integrator``: ``"rk4"`` at ``dt`` or ``"ros2"`` at ``ros2_dt``,
+    :mod:`softhand_env.physics.rosenbrock`) is one for all hands; under ``"ros2"`` all hands
+    also share ``dt`` and ``ros2_dt`` (:meth:`set_params` refuses others).
     """
 
     def __init__(
@@ -307,6 +326,8 @@ class HandPhysics:
         self.dn_limit = float(params.a if dn_limit is None else dn_limit)
         self.base_limit = float(base_limit)
         self._params: list[HandParams] = [params] * n
+        self._integrator = params.integrator
+        self._ros2_dt = params.ros2_dt
         self._prm = np.ascontiguousarray(np.tile(pack_params(params), (n, 1)))
         self._y = np.tile(initial_state(params), (n, 1))
         self._u = self._y[:, TH_1 : TH_1 + 2].copy()
@@ -336,6 +357,11 @@ class HandPhysics:
         if total - total != 0.0 and not np.all(np.isfinite(a)):
             raise ValueError(f"{name} must be finite (got {a.tolist()})")
         return a.reshape((self._n, *tail))
+
+    @property
+    def integrator(self) -> str:
+        """Name of the integrator of every hand (``"rk4"`` or ``"ros2"``)."""
+        return self._integrator
 
     @property
     def dt(self) -> float:
@@ -390,6 +416,22 @@ class HandPhysics:
         if self._check_stability:
             warn_if_unstable(params, stacklevel=2)
         rows = range(self._n) if index is None else (index,)
+        if index is not None and self._n > 1:
+            first = self._params[1 if index == 0 else 0]
+            same = params.integrator == first.integrator and (
+                params.integrator == "rk4"
+                or (params.dt == first.dt and params.ros2_dt == first.ros2_dt)
+            )
+            if not same:
+                raise ValueError(
+                    "every hand of a HandPhysics must use the same integrator (and, under "
+                    f"'ros2', the same dt and ros2_dt): got integrator={params.integrator!r}, "
+                    f"dt={params.dt!r}, ros2_dt={params.ros2_dt!r} for hand {index}, "
+                    f"the others have {first.integrator!r}, {first.dt!r}, {first.ros2_dt!r}"
+                )
+        else:
+            self._integrator = params.integrator
+            self._ros2_dt = params.ros2_dt
         prm = pack_params(params)
         for i in rows:
             self._params[i] = params
@@ -416,7 +458,8 @@ class HandPhysics:
         strict: bool = True,
         skip: np.ndarray | None = None,
     ) -> StepStatus:
-        """Advance every hand ``n_substeps`` RK4 substeps holding the set-points ``setpoint``.
+        """Advance every hand ``n_substeps`` substeps of ``dt`` holding the set-points
+        ``setpoint`` (RK4 substeps, or that time in ROS2 steps under ``integrator="ros2"``).
 
         A hand whose state became non-finite is rolled back to its state before the step;
         every hand is then classified (:func:`softhand_env.physics.failure.classify`).
@@ -446,18 +489,30 @@ class HandPhysics:
         if n < 1:
             raise ValueError(f"n_substeps must be >= 1 (got {n_substeps!r})")
         self._u[:] = u
+        ros2 = self._integrator == "ros2"
         if self._n == 1 and (skip is None or not skip[0]):
-            flags, diag, failed, grasped, reason = _step_on_this_thread(
-                self._y, self._u, self._prm, self._time, n, self.ch_limit, self.dn_limit,
-                self.base_limit,
-            )
+            if ros2:
+                flags, diag, failed, grasped, reason = _step_ros2_on_this_thread(
+                    self._y, self._u, self._prm, self._time, n, self._ros2_dt,
+                    self.ch_limit, self.dn_limit, self.base_limit,
+                )
+            else:
+                flags, diag, failed, grasped, reason = _step_on_this_thread(
+                    self._y, self._u, self._prm, self._time, n, self.ch_limit,
+                    self.dn_limit, self.base_limit,
+                )
         else:
             y_prev = self._y.copy()
             flags = np.zeros(self._n, dtype=np.int64)
             if skip is not None:
                 flags[skip] = kernel.FLAG_SKIP
             diag = np.zeros((self._n, kernel.N_STEP_DIAG))
-            kernel.advance_batch(self._y, self._u, self._prm, n, self.ch_limit, diag, flags)
+            if ros2:
+                rosenbrock.advance_batch(self._y, self._u, self._prm, n, self._ros2_dt,
+                                         self.ch_limit, diag, flags)
+            else:
+                kernel.advance_batch(self._y, self._u, self._prm, n, self.ch_limit, diag,
+                                     flags)
             failed, grasped, reason = _finish_step(
                 flags, self._y, y_prev, self._prm, diag, self._time, self.ch_limit,
                 self.dn_limit, self.base_limit,

@@ -31,7 +31,13 @@ YAML key             field       meaning (SI unit of the field)
 ``Ki_Nm_rads``       Ki          PID integral gain (N m/(rad s))
 ``alpha_1_s``        alpha       CSM Baumgarte gain of the holonomic constraints (1/s)
 ``beta_1_s``         beta        CSM Baumgarte gain of the non-holonomic constraints (1/s)
-``dt_ms``            dt          RK4 substep (s)
+``dt_ms``            dt          RK4 substep (s); under ``integrator: ros2`` the unit in
+                                 which control periods are counted (they stay multiples of it)
+``integrator``       integrator  ``"rk4"`` (classic RK4 at ``dt``, default, the paper's
+                                 scheme) or ``"ros2"`` (the linearly implicit Rosenbrock
+                                 method of :mod:`softhand_env.physics.rosenbrock` at
+                                 ``ros2_dt``)
+``ros2_dt_ms``       ros2_dt     ROS2 step (s) (default 1 ms; used by ``integrator: ros2``)
 ``cross_term``       cross_term  sign of the d_n^2 d_t tan(theta_p) term: ``"uniform"`` (-1
                                  for both fingers, default, mirror-symmetric) or
                                  ``"printed"`` ((-1)^i as printed in Eq 5.5)
@@ -74,6 +80,10 @@ CONFIG_DIR = Path(__file__).resolve().parents[1] / "configs"
 
 #: Allowed values of :attr:`HandParams.cross_term`.
 CROSS_TERMS = ("uniform", "printed")
+#: Allowed values of :attr:`HandParams.integrator`.
+INTEGRATORS = ("rk4", "ros2")
+#: Fields whose value is a name, not a number: field -> allowed values.
+_CHOICES: dict[str, tuple[str, ...]] = {"cross_term": CROSS_TERMS, "integrator": INTEGRATORS}
 
 
 @dataclass(frozen=True)
@@ -107,13 +117,16 @@ class HandParams:
     cross_term: str = "uniform"
     bending: float = 1.0
     mu: float = 1.0
+    integrator: str = "rk4"
+    ros2_dt: float = 1e-3
 
     def __post_init__(self) -> None:
         for f in dataclasses.fields(self):
             value = getattr(self, f.name)
-            if f.name == "cross_term":
-                if not (isinstance(value, str) and value in CROSS_TERMS):
-                    raise ValueError(f"cross_term must be one of {CROSS_TERMS} (got {value!r})")
+            if f.name in _CHOICES:
+                allowed = _CHOICES[f.name]
+                if not (isinstance(value, str) and value in allowed):
+                    raise ValueError(f"{f.name} must be one of {allowed} (got {value!r})")
                 continue
             if f.name == "M_deform" and value is None:
                 continue
@@ -181,6 +194,7 @@ _RANGES: dict[str, tuple[float, float, bool]] = {
     "dt": (0.0, 1e-2, False),
     "bending": (0.0, 1e9, False),
     "mu": (0.0, 10.0, False),
+    "ros2_dt": (0.0, 1e-2, False),
 }
 
 #: YAML key -> (HandParams field, multiply YAML value by this to get SI; None = no unit)
@@ -208,6 +222,8 @@ YAML_KEYS: dict[str, tuple[str, float | None]] = {
     "cross_term": ("cross_term", None),
     "bending_scale": ("bending", None),
     "mu": ("mu", None),
+    "integrator": ("integrator", None),
+    "ros2_dt_ms": ("ros2_dt", 1e-3),
 }
 _FIELD_TO_KEY = {field: key for key, (field, _) in YAML_KEYS.items()}
 
@@ -270,7 +286,7 @@ def hand_params_from_dict(
                 f"{source}: unknown key {key!r}; allowed keys: {', '.join(sorted(YAML_KEYS))}"
             )
         field, scale = YAML_KEYS[key]
-        if field == "cross_term" or (field == "M_deform" and value is None):
+        if field in _CHOICES or (field == "M_deform" and value is None):
             changes[field] = value
             continue
         unit = 1.0 if scale is None else scale

@@ -26,6 +26,21 @@ kg). A mode therefore counts as unstable if RK4 amplifies it at (1 + :data:`STEP
 % more than the step. Each eigenvalue is named after the coordinates that dominate its
 eigenvector (angles weighted by the finger length to compare them with lengths); the Baumgarte
 modes (-alpha, double, and -beta) are reported from their exact values.
+
+Under ``integrator="ros2"`` (:mod:`softhand_env.physics.rosenbrock`) the check is the same in
+spirit but exact for the method as implemented: the linearised map of one ROS2 step of
+(1 + STEP_MARGIN) ``ros2_dt`` (central differences of :func:`.rosenbrock.ros2_step` at the same
+probe states; it contains the method's own matrix W, not only the model's Jacobian) must not
+amplify any mode, |mu| <= exp(h max Re lambda) for every eigenvalue mu of the 20 x 20 step
+matrix, where lambda are the eigenvalues of the model's own linearisation there (their
+largest real part is ~0: the neutral object mode), with a 1e-6 relative tolerance for the
+difference quotients. ROS2 with
+the exact Jacobian is L-stable (:func:`ros2_amplification` is at most 1 on the whole left half
+plane and 0 at infinity); the check guards the approximation in W. Each step-matrix eigenvalue
+is reported as the rate lambda = log(mu) / h it integrates (``Mode.eigenvalue``) with
+``amplification = |mu|``. :func:`check_stability`, :func:`stability_message`,
+:func:`warn_if_unstable` and :func:`check_randomization_ranges` use the check of
+``params.integrator``.
 """
 
 from __future__ import annotations
@@ -76,6 +91,16 @@ NON_HOLONOMIC = "non-holonomic (beta)"
 PID_INTEGRAL = "PID integral (Ki)"
 
 
+def ros2_amplification(z: complex | np.ndarray) -> np.ndarray:
+    """|R(z)| of ROS2 with the exact Jacobian (gamma = 1 + 1/sqrt(2)) for ``z = h lambda``:
+    ``R = 1 + 3/2 z a + 1/2 z a (1 + z a - 2 a)``, ``a = 1 / (1 - gamma z)``."""
+    from softhand_env.physics.rosenbrock import GAMMA
+
+    z = np.asarray(z, dtype=complex)
+    a = 1.0 / (1.0 - GAMMA * z)
+    return np.abs(1.0 + 1.5 * z * a + 0.5 * a * z * (1.0 + z * a - 2.0 * a))
+
+
 def rk4_amplification(z: complex | np.ndarray) -> np.ndarray:
     """|R(z)| of classic RK4 for ``z = h lambda`` (dimensionless; > 1 grows per step)."""
     z = np.asarray(z, dtype=complex)
@@ -104,9 +129,15 @@ class Mode:
     amplification: float
     hdt: float
 
+    bound: float | None = None
+
     @property
     def unstable(self) -> bool:
-        """True if RK4 amplifies this decaying mode (|R| > 1 with Re lambda < 0)."""
+        """True if the integrator amplifies this decaying mode (|R| > 1 with Re lambda < 0);
+        for a mode of a step map (``bound`` set): |mu| above ``bound``, the growth the model's
+        own linearisation allows over the step, with the tolerance."""
+        if self.bound is not None:
+            return self.amplification > self.bound
         return self.eigenvalue.real < 0.0 and self.amplification > 1.0 + 1e-12
 
 
@@ -203,6 +234,64 @@ def rk4_modes(params: HandParams) -> dict[str, Mode]:
     return modes
 
 
+#: Tolerance on |mu| of the ROS2 step matrix (difference quotients of the step map).
+ROS2_TOLERANCE = 1e-6
+
+
+def ros2_step_matrix(params: HandParams, y: np.ndarray, u: np.ndarray, h: float) -> np.ndarray:
+    """d(step)/dy of one ROS2 step of ``h`` seconds at (y, u) by central differences, shape
+    (20, 20) (:func:`softhand_env.physics.rosenbrock.ros2_step`)."""
+    from softhand_env.physics.rosenbrock import ros2_step
+
+    prm = pack_params(params)
+    A = np.empty((NY, NY))
+    for j in range(NY):
+        e = (1e-7 if j < NQ else 1e-5) * max(1.0, abs(y[j]))
+        yp = y.copy()
+        ym = y.copy()
+        yp[j] += e
+        ym[j] -= e
+        ros2_step(yp, u, prm, h)
+        ros2_step(ym, u, prm, h)
+        A[:, j] = (yp - ym) / (2.0 * e)
+    return A
+
+
+@functools.lru_cache(maxsize=512)
+def ros2_modes(params: HandParams) -> dict[str, Mode]:
+    """Least stable eigenvalue of each mode class of the ROS2 step map at
+    (1 + STEP_MARGIN) ``params.ros2_dt`` over :func:`probe_states` (cached; module doc)."""
+    h = params.ros2_dt * (1.0 + STEP_MARGIN)
+    modes: dict[str, Mode] = {}
+    for y, u in probe_states(params):
+        # the growth the model itself has at the probe state (a neutral mode: ~0)
+        growth = max(0.0, float(np.linalg.eigvals(jacobian(params, y, u)).real.max()))
+        bound = math.exp(growth * h) * (1.0 + ROS2_TOLERANCE)
+        mus, vecs = np.linalg.eig(ros2_step_matrix(params, y, u, h))
+        for k, mu in enumerate(mus):
+            if not np.isfinite(mu):
+                continue
+            amp = float(abs(mu))
+            lam = complex(np.log(complex(mu)) / h) if amp > 0.0 else complex(-np.inf)
+            mode = Mode(_mode_name(vecs[:, k], params), lam, amp, abs(lam) * params.ros2_dt,
+                        bound)
+            old = modes.get(mode.name)
+            if old is None or mode.amplification > old.amplification:
+                modes[mode.name] = mode
+    return modes
+
+
+def integrator_modes(params: HandParams) -> dict[str, Mode]:
+    """:func:`rk4_modes` or :func:`ros2_modes`, as ``params.integrator`` says."""
+    return ros2_modes(params) if params.integrator == "ros2" else rk4_modes(params)
+
+
+def check_stability(params: HandParams) -> list[str]:
+    """Names of the mode classes the integrator of ``params`` amplifies although they decay
+    (RK4 at ``dt`` or ROS2 at ``ros2_dt``, with the step margin); empty if none."""
+    return [name for name, mode in integrator_modes(params).items() if mode.unstable]
+
+
 def rk4_stability_margins(params: HandParams) -> dict[str, float]:
     """|lambda| dt of the least stable eigenvalue of each mode class (RK4's limit on the
     negative real axis is 2.785; see :func:`check_rk4_stability` for complex ones)."""
@@ -216,10 +305,17 @@ def check_rk4_stability(params: HandParams) -> list[str]:
 
 
 def stability_message(params: HandParams) -> str | None:
-    """One-line description of the unstable modes of ``params`` (None if all are stable)."""
-    modes = [m for m in rk4_modes(params).values() if m.unstable]
+    """One-line description of the modes of ``params`` its integrator amplifies (None if all
+    are stable)."""
+    modes = [m for m in integrator_modes(params).values() if m.unstable]
     if not modes:
         return None
+    if params.integrator == "ros2":
+        detail = ", ".join(f"{m.name}: |mu| = {m.amplification:.4f}" for m in modes)
+        return (
+            f"ROS2 step ros2_dt = {params.ros2_dt:g} s amplifies the {detail} (linearised "
+            f"step map, {STEP_MARGIN:.0%} margin); expect divergence (reduce ros2_dt)"
+        )
     detail = ", ".join(f"{m.name}: |lambda| dt = {m.hdt:.2f}" for m in modes)
     limit = RK4_REAL_STABILITY / (1.0 + STEP_MARGIN)
     return (
@@ -231,7 +327,7 @@ def stability_message(params: HandParams) -> str | None:
 
 def warn_if_unstable(params: HandParams, stacklevel: int = 2, error: bool = False) -> None:
     """Warn (``RuntimeWarning``) or, with ``error=True``, raise ``ValueError`` naming the modes
-    beyond RK4's stability limit, if any."""
+    beyond the stability limit of the integrator of ``params`` (:func:`stability_message`)."""
     message = stability_message(params)
     if message is None:
         return
@@ -245,11 +341,12 @@ def check_randomization_ranges(
     groups: Mapping[str, Sequence[str]],
     half_widths: Mapping[str, float],
 ) -> None:
-    """Refuse randomisation ranges whose extremes leave RK4's stable region.
+    """Refuse randomisation ranges whose extremes leave the integrator's stable region.
 
     Each keyword k scales the fields ``groups[k]`` together by a factor in
     ``[1 - half_widths[k], 1 + half_widths[k]]``; every corner of that box (all keywords at
-    one of their extremes) is checked with :func:`check_rk4_stability`.
+    one of their extremes) is checked with :func:`check_stability` (RK4 or ROS2, as
+    ``base.integrator`` says).
 
     Parameters
     ----------
@@ -280,19 +377,19 @@ def check_randomization_ranges(
     widths = {k: float(half_widths[k]) for k in active}
     for signs in product((-1.0, 1.0), repeat=len(active)):
         params = corner(signs, widths)
-        unstable = check_rk4_stability(params)
+        unstable = check_stability(params)
         if not unstable:
             continue
         # the largest half-width of one keyword that makes this corner stable on its own
         # (bisection, the others at their extremes)
         limit_text = "no single keyword makes it stable"
         for k in active:
-            if check_rk4_stability(corner(signs, {**widths, k: 0.0})):
+            if check_stability(corner(signs, {**widths, k: 0.0})):
                 continue
             lo, hi = 0.0, widths[k]
             for _ in range(30):
                 mid = 0.5 * (lo + hi)
-                if check_rk4_stability(corner(signs, {**widths, k: mid})):
+                if check_stability(corner(signs, {**widths, k: mid})):
                     hi = mid
                 else:
                     lo = mid
@@ -301,7 +398,13 @@ def check_randomization_ranges(
         where = ", ".join(
             f"{k} {'+' if s > 0 else '-'}{widths[k]:g}" for k, s in zip(active, signs, strict=True)
         )
-        mode = rk4_modes(params)[unstable[0]]
+        mode = integrator_modes(params)[unstable[0]]
+        if params.integrator == "ros2":
+            raise ValueError(
+                f"randomisation range leaves ROS2's stable region at ros2_dt = "
+                f"{params.ros2_dt:g} s: at ({where}) the {mode.name} mode has |mu| = "
+                f"{mode.amplification:.4f} > 1; {limit_text}"
+            )
         raise ValueError(
             f"randomisation range leaves RK4's stable region at dt = {params.dt:g} s: at "
             f"({where}) the {mode.name} mode has |lambda| dt = {mode.hdt:.2f} (limit "
@@ -313,13 +416,19 @@ __all__ = [
     "Mode",
     "RK4_REAL_STABILITY",
     "STEP_MARGIN",
+    "ROS2_TOLERANCE",
     "check_randomization_ranges",
     "check_rk4_stability",
+    "check_stability",
+    "integrator_modes",
     "jacobian",
     "probe_states",
     "rk4_amplification",
     "rk4_modes",
     "rk4_stability_margins",
+    "ros2_amplification",
+    "ros2_modes",
+    "ros2_step_matrix",
     "stability_message",
     "warn_if_unstable",
 ]

@@ -14,6 +14,17 @@ with episodes of K steps (resets included) with and without the post-grasp cache
 timed runs (the figures are noisy on a shared machine). A kernel-only line gives the
 ceiling: RK4 substeps per second of
 :func:`softhand_env.physics.kernel.advance`. Timing is reported, never asserted.
+
+The integrator comparison (:func:`compare_integrators`, printed first; ``--compare-only``
+prints only it, ``--no-compare`` skips it) measures ROS2 at its default step
+(``hand_overrides={"integrator": "ros2"}``) against RK4 in the same run and prints one line
+``fast/rk4 speed ratio: <float>`` per figure: right-hand-side evaluations per simulated
+second (counted from the step schedules of a 20 ms control step), the single environment
+(``SoftHandPose-v0``, random actions, resets included), the native vector environment at N =
+``--compare-n`` (default 512), and the Random id (``SoftHandPoseRandom-v0``: RK4 at its 0.05
+ms). The anchor rows (:mod:`softhand_env.tools.bench_mujoco`: MuJoCo's Reacher-v5 and
+Pusher-v5, skipped without ``mujoco``) give simulated seconds per wall second next to the
+soft hand's.
 """
 
 from __future__ import annotations
@@ -63,6 +74,7 @@ def bench_single(env_id: str, steps: int, repeats: int, **kwargs) -> float:
     base: Any = env.unwrapped  # a SoftHandEnv
     if not base.config.actions.normalize:
         raise ValueError("the benchmark uses normalised actions")
+    env.step(actions[0])  # warm-up: compiles the step path outside the timed runs
 
     def run() -> float:
         env.reset(seed=0)
@@ -98,6 +110,77 @@ def bench_vector(env_id: str, mode: str, n: int, steps: int, repeats: int, **kwa
     return rate
 
 
+#: Environment of the single and vector figures, and the Random id, of the comparison.
+COMPARE_ID = "SoftHandPose-v0"
+COMPARE_RANDOM_ID = "SoftHandPoseRandom-v0"
+FAST = {"integrator": "ros2"}
+
+
+def rhs_per_simulated_second(control_dt: float = 0.02, dt: float = 1e-4,
+                             ros2_dt: float = 1e-3) -> tuple[float, float]:
+    """Right-hand-side evaluations per simulated second of RK4 at ``dt`` and of ROS2 at
+    ``ros2_dt`` in calls of ``control_dt`` seconds (RK4: 4 per substep and one at the end of
+    a call; ROS2: :func:`softhand_env.physics.rosenbrock.rhs_evaluations`)."""
+    from softhand_env.physics.rosenbrock import rhs_evaluations
+
+    n = round(control_dt / dt)
+    return (4 * n + 1) / control_dt, rhs_evaluations(control_dt, ros2_dt) / control_dt
+
+
+def compare_integrators(steps: int, n_vec: int, repeats: int,
+                        show: Callable[[str, float, float], None]) -> dict[str, float]:
+    """ROS2 against RK4 in one run; calls ``show(figure, rk4, fast)`` per figure (rates: larger
+    is faster; RHS evaluations: smaller is cheaper) and returns figure -> fast/rk4 ratio."""
+    ratios: dict[str, float] = {}
+
+    def figure(name: str, rk4: float, fast: float, cost: bool = False) -> None:
+        ratios[name] = rk4 / fast if cost else fast / rk4
+        show(name, rk4, fast)
+
+    rk4, fast = rhs_per_simulated_second()
+    figure("RHS evaluations per simulated s", rk4, fast, cost=True)
+    rk4_r, _ = rhs_per_simulated_second(dt=5e-5)
+    figure("RHS evaluations per simulated s (Random ids)", rk4_r, fast, cost=True)
+    single = [bench_single(COMPARE_ID, steps, repeats, hand_overrides=o) for o in (None, FAST)]
+    figure(f"single env {COMPARE_ID} (env steps/s)", single[0], single[1])
+    vsteps = max(steps // n_vec, 4)
+    vec = [bench_vector(COMPARE_ID, "vector_entry_point", n_vec, vsteps, repeats,
+                        hand_overrides=o) for o in (None, FAST)]
+    figure(f"native vector env N={n_vec} (env steps/s)", vec[0], vec[1])
+    rand = [bench_single(COMPARE_RANDOM_ID, steps, repeats, **kw)
+            for kw in ({}, {"hand_overrides": FAST})]
+    figure(f"single env {COMPARE_RANDOM_ID} (env steps/s)", rand[0], rand[1])
+    return ratios
+
+
+def _print_comparison(steps: int, n_vec: int, repeats: int, mujoco_steps: int) -> None:
+    from softhand_env.tools import bench_mujoco
+
+    print(f"integrators: RK4 (paper, 0.1 ms; Random ids 0.05 ms) vs ROS2 "
+          f"(hand_overrides={FAST}, 1 ms), best of {repeats}")
+
+    def show(name: str, rk4: float, fast: float) -> None:
+        ratio = rk4 / fast if name.startswith("RHS") else fast / rk4
+        print(f"{name:<48}{'rk4':>5}{rk4:>14,.0f}{'fast':>6}{fast:>14,.0f}", flush=True)
+        print(f"  fast/rk4 speed ratio: {ratio:.2f}", flush=True)
+
+    compare_integrators(steps, n_vec, repeats, show)
+    # simulated seconds per wall second, single env, beside MuJoCo's anchors
+    import gymnasium as gym
+
+    probe: Any = gym.make(COMPARE_ID).unwrapped
+    dt = float(probe.dt)
+    probe.close()
+    for label, kw in (("rk4", None), ("ros2", FAST)):
+        rate = bench_single(COMPARE_ID, steps, repeats, hand_overrides=kw)
+        print(f"{COMPARE_ID + ' ' + label:<34}{rate * dt:>10,.0f} simulated s / wall s")
+    for env_id, anchor in bench_mujoco.bench_anchors(mujoco_steps, repeats).items():
+        if anchor is None:
+            print(f"{env_id:<34}{'skipped':>10}   (mujoco is not installed)")
+        else:
+            print(f"{env_id:<34}{anchor:>10,.0f} simulated s / wall s")
+
+
 def main(argv: list[str] | None = None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--id", default="SoftHandReorient-v0", help="environment id")
@@ -110,9 +193,25 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("--episode-steps", type=int, default=None,
                         help="only the single env, episodes of this many steps, grasp cache "
                              "on and off")
+    parser.add_argument("--compare-n", type=int, default=None,
+                        help="N of the native vector env in the integrator comparison "
+                             "(default: the largest of --sizes, 512)")
+    parser.add_argument("--compare-steps", type=int, default=None,
+                        help="env steps per timed run of the integrator comparison "
+                             "(default: --env-steps, at most 2000)")
+    parser.add_argument("--compare-only", action="store_true",
+                        help="only the integrator comparison and the MuJoCo anchors")
+    parser.add_argument("--no-compare", action="store_true",
+                        help="skip the integrator comparison")
     args = parser.parse_args(argv)
 
     import numba
+
+    if not args.no_compare and args.episode_steps is None:
+        steps = args.compare_steps or min(args.env_steps, 2000)
+        _print_comparison(steps, args.compare_n or max(args.sizes), args.repeats, steps)
+        if args.compare_only:
+            return
 
     if args.episode_steps is not None:
         from softhand_env.envs.start import grasp_cache

@@ -65,6 +65,8 @@ def _variants():
         value = getattr(base, f.name)
         if f.name == "cross_term":
             new = "printed"
+        elif f.name == "integrator":
+            new = "ros2"
         elif f.name == "M_deform":
             new = 1.01 * base.M_obj
         elif f.name == "g":
