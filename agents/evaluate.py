@@ -204,7 +204,6 @@ MAX_GOALS_BYTES = 20_000_000
 def read_goals(path: str, targets: Sequence[str]) -> list[list[float]]:
     """Goals of a ``--goals`` file: a JSON list, each goal a list of ``len(targets)`` finite
     numbers in SI units (a bare number for a 1-D task); :class:`UserError` otherwise."""
-    import json
 
     if not targets:
         raise UserError("--goals needs a goal task (SoftHandTranslate/Reorient/Pose-v0)")

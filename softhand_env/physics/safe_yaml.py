@@ -22,7 +22,12 @@ MAX_DEPTH = 32
 #: Longest integer (digits).
 MAX_INT_DIGITS = 30
 
-_LONG_INT = re.compile(r"[-+]?[0-9_]{%d,}" % (MAX_INT_DIGITS + 1))
+_LONG_INT = re.compile(rf"[-+]?[0-9_]{{{MAX_INT_DIGITS + 1},}}")
+
+
+def _line(event: yaml.Event) -> int:
+    mark = event.start_mark
+    return mark.line + 1 if mark is not None else 0
 
 
 def _check_events(loader: yaml.SafeLoader, source: str) -> None:
@@ -31,7 +36,7 @@ def _check_events(loader: yaml.SafeLoader, source: str) -> None:
         event = loader.get_event()
         if isinstance(event, yaml.AliasEvent) or getattr(event, "anchor", None) is not None:
             raise ValueError(f"{source}: YAML anchors and aliases are not allowed (line "
-                             f"{event.start_mark.line + 1})")
+                             f"{_line(event)})")
         if isinstance(event, (yaml.SequenceStartEvent, yaml.MappingStartEvent)):
             depth += 1
             if depth > MAX_DEPTH:
@@ -41,7 +46,7 @@ def _check_events(loader: yaml.SafeLoader, source: str) -> None:
         elif isinstance(event, yaml.ScalarEvent) and event.style is None and _LONG_INT.fullmatch(
                 event.value):
             raise ValueError(f"{source}: integer longer than {MAX_INT_DIGITS} digits (line "
-                             f"{event.start_mark.line + 1})")
+                             f"{_line(event)})")
 
 
 def load_bounded(text: str | bytes, loader_cls: type = yaml.SafeLoader,
