@@ -161,9 +161,9 @@ def resolve_model(spec: str | Path) -> ModelRun:
     args_path = params[0] / ARGS_FILE
     args = _read_yaml(args_path) if args_path.is_file() else {}
     algo = args.get("algo") or record.get("algo") or run_dir.parent.name
-    if algo not in ALGOS:
-        raise UserError(f"{p}: unknown algo {algo!r} (from args.yml or the folder name; "
-                        f"known: {', '.join(ALGOS)})")
+    if not isinstance(algo, str) or algo not in ALGOS:
+        raise UserError(f"{p}: unknown algo {short_repr(algo)} (from args.yml or the folder "
+                        f"name; known: {', '.join(ALGOS)})")
     npz, pkl = _stats_files(p, run_dir, env_id)
     return ModelRun(zip_path=p, run_dir=run_dir, env_id=env_id, algo=algo,
                     hyperparams=hyperparams, record=record, args=args,
@@ -333,8 +333,8 @@ class ModelPolicy:
             try:
                 check_model_compatibility(saved, env, ignore=tuple(ignore))
             except ValueError as exc:
-                raise UserError(f"{self.path}: {exc} (retrain, or pass --ignore-signature "
-                                "FIELD to run it anyway)") from None
+                raise UserError(f"{self.path}: {str(exc)[:500]} (retrain, or pass "
+                                "--ignore-signature FIELD to run it anyway)") from None
         for name in ("observation_space", "action_space"):
             want, got = getattr(self.model, name).shape, getattr(env, name).shape
             if want != got:

@@ -19,8 +19,8 @@ import yaml
 MAX_YAML_BYTES = 1_000_000
 #: Deepest nesting of sequences and mappings.
 MAX_DEPTH = 32
-#: Longest integer (digits).
-MAX_INT_DIGITS = 30
+#: Longest integer (digits): longer ones are refused before Python's int() would raise.
+MAX_INT_DIGITS = 4000  # below Python's own int-parsing limit (4300)
 
 _LONG_INT = re.compile(rf"[-+]?[0-9_]{{{MAX_INT_DIGITS + 1},}}")
 
