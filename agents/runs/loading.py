@@ -176,8 +176,12 @@ class ModelPolicy:
 
     Loading runs no code from the model's files: the zip's pickled entries are rebuilt from the
     run config and the env, weights are read with ``weights_only=True``, statistics from the
-    ``.npz``, ``env_wrapper`` entries limited to an allow-list, and every file is checked
-    against the sha256 recorded in ``config.yml``.
+    ``.npz``, ``env_wrapper`` entries limited to an allow-list of classes with checked
+    keywords, every file is checked against the sha256 recorded in ``config.yml`` and
+    ``config.yml`` against the digest in its manifest (:mod:`agents.runs.layout`); every file
+    is read within a size bound. The run's env keywords are checked (known keywords, no
+    rendering, a bounded ``max_episode_steps``); :meth:`evaluation_kwargs` gives the
+    keywords of the id's benchmark task (:mod:`agents.runs.task_keywords`).
 
     Parameters
     ----------
