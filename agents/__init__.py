@@ -14,7 +14,7 @@ Sub-packages (libraries; no command imports another command's internals):
   the ``env_wrapper`` allow-list;
 * ``runs``: the on-disk run format (layout and file names, reading, writing, typed run
   config and record, SB3 zips without unpickling, observation statistics, RL Zoo's YAML
-  dialect, hyper-parameter files);
+  dialect, hyper-parameter files, the task keywords the registered id defines);
 * ``sb3``: the native vector env as an SB3 ``VecEnv``, asymmetric / blind policies, the goal
   curriculum and the training library of ``train`` and ``distill``;
 * ``wrappers``: time feature, action history, the residual on the loop plan;

@@ -19,6 +19,13 @@ With ``--goals FILE`` (a JSON list of goals in the task's SI units, see ``--help
 plays goal k instead, ``reset(seed=SEED + k, options={"goal": goal_k})``, for models and
 scripted policies alike.
 
+The registered id defines the task: a model is played with its config's agent keywords
+(control period, action mapping, observation layout) on the id's task keywords (goal ranges,
+tolerances, episode duration, hand, randomisation, sensor model); a config that sets a task
+keyword otherwise is refused (:mod:`agents.runs.task_keywords`). ``--task-kwargs KEY:VALUE``
+sets task keywords on purpose; the table and ``results.yml`` then say ``benchmark: false``
+and name them.
+
 Prints a table (success rate, final |x| and |theta| errors, return, episode length) and writes
 to ``--out`` (default ``logs/eval/<env id>/<model run or policy>``; earlier results are never
 overwritten without ``--force``): ``results.yml`` (summary and every
@@ -38,7 +45,14 @@ from typing import Any
 import numpy as np
 import yaml
 
-from agents.common.cli import SEED_MAX, ArgumentParser, UserError, check_range, run_cli
+from agents.common.cli import (
+    SEED_MAX,
+    ArgumentParser,
+    UserError,
+    check_range,
+    parse_kv,
+    run_cli,
+)
 from agents.common.env_factory import goal_seeds, make_env, task_targets
 from agents.common.metrics import ERROR_KEYS
 from agents.play.choice import SCRIPTED, PolicyChoice, build
@@ -75,6 +89,7 @@ class EvaluateSettings:
     gif_episode: int | None = None
     gif_size: int = 240
     ignore_signature: list[str] = dataclasses.field(default_factory=list)
+    task_kwargs: list[str] = dataclasses.field(default_factory=list)
     trust_model: bool = False
     device: str = "cpu"
     torch_threads: int = 1
@@ -91,7 +106,8 @@ class EvaluateSettings:
         """The policy to play."""
         return PolicyChoice(model=self.model, policy=self.policy, env=self.env,
                             grasp_deg=self.grasp_deg, device=self.device,
-                            trust_model=self.trust_model)
+                            trust_model=self.trust_model,
+                            task_kwargs=parse_kv(self.task_kwargs, "--task-kwargs"))
 
 
 def parse_args(argv: Sequence[str] | None = None) -> EvaluateSettings:
@@ -126,6 +142,10 @@ def parse_args(argv: Sequence[str] | None = None) -> EvaluateSettings:
     p.add_argument("--gif-size", type=int, default=240, help="GIF frame size (px)")
     p.add_argument("--ignore-signature", nargs="+", default=[], metavar="FIELD",
                    help="model: env-signature fields not to check (e.g. version)")
+    p.add_argument("--task-kwargs", nargs="+", default=[], metavar="KEY:VALUE",
+                   help="task keywords to evaluate on instead of the id's (goal ranges, "
+                        "tolerances, max_episode_steps, hand, rand_*...): the results are "
+                        "labelled benchmark: false")
     p.add_argument("--trust-model", action="store_true",
                    help="model: also load what only unpickling can read (zip entries that cannot "
                         "be rebuilt, vecnormalize.pkl without .npz): runs code from the files")
@@ -177,19 +197,28 @@ def write_gif(path: Path, env_id: str, kwargs: dict[str, Any], wrapper: Any, pol
     imageio.mimsave(path, images, duration=duration, loop=0)
 
 
+#: Largest ``--goals`` file (bytes).
+MAX_GOALS_BYTES = 20_000_000
+
+
 def read_goals(path: str, targets: Sequence[str]) -> list[list[float]]:
     """Goals of a ``--goals`` file: a JSON list, each goal a list of ``len(targets)`` finite
     numbers in SI units (a bare number for a 1-D task); :class:`UserError` otherwise."""
-    import json
 
     if not targets:
         raise UserError("--goals needs a goal task (SoftHandTranslate/Reorient/Pose-v0)")
+    from agents.runs.model_files import load_json_bounded
+
     try:
-        data = json.loads(Path(path).read_text())
+        with open(path, "rb") as fh:
+            text = fh.read(MAX_GOALS_BYTES + 1)
+        if len(text) > MAX_GOALS_BYTES:
+            raise UserError(f"--goals: {path} is larger than {MAX_GOALS_BYTES} bytes")
+        data = load_json_bounded(text, f"--goals {path}", limit=3)
     except OSError as exc:
         raise UserError(f"--goals: cannot read {path}: {exc.strerror}") from None
     except ValueError as exc:
-        raise UserError(f"--goals: {path} is not JSON: {exc}") from None
+        raise UserError(f"--goals: {path} is not JSON of goals: {str(exc)[:200]}") from None
     if not isinstance(data, list) or not data or len(data) > 100_000:
         raise UserError(f"--goals: {path} must hold a JSON list of 1 .. 100000 goals")
     units = {"x": "x (m)", "theta": "theta (rad)"}
@@ -277,11 +306,16 @@ def main(argv: Sequence[str] | None = None) -> dict[str, float]:
         title = evaluation_title(env_id, name, n_episodes, args.seed, targets)
     else:
         title = f"{env_id}, {name} policy, {n_episodes} goals from {args.goals}"
+    overrides = args.choice().task_kwargs
+    if overrides:
+        title += " -- NOT the benchmark: task keywords " + ", ".join(
+            f"{k}={v!r}" for k, v in sorted(overrides.items()))
     print(format_table(title, summary, targets))
     out.mkdir(parents=True, exist_ok=True)
     results = EvaluationResults(env_id=env_id, policy=str(args.model or args.policy),
                                 env_kwargs=kwargs, env_wrapper=wrapper, seed=args.seed,
-                                goals_file=args.goals, summary=summary, episodes=episodes)
+                                goals_file=args.goals, summary=summary, episodes=episodes,
+                                task_overrides=overrides)
     with (out / "results.yml").open("w") as fh:
         yaml.safe_dump(results.to_yaml(), fh, sort_keys=False)
     if not args.no_plots:

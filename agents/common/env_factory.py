@@ -10,6 +10,7 @@
 from __future__ import annotations
 
 from collections.abc import Callable, Sequence
+from dataclasses import dataclass
 from typing import Any
 
 import gymnasium as gym
@@ -44,46 +45,100 @@ def task_targets(env_id: str) -> tuple[str, ...]:
     return TASK_TARGETS[ENV_IDS[env_id]]
 
 
-#: Modules an ``env_wrapper`` entry may name a class from: the project's own packages and
-#: Gymnasium's wrappers. Anything else is refused before it is imported.
-WRAPPER_MODULES = ("agents", "softhand_env", "gymnasium.wrappers")
+def short_repr(value: Any, limit: int = 120) -> str:
+    """``repr(value)`` cut to about ``limit`` characters, without formatting more of a nested
+    or aliased structure than it shows (for error messages about values read from files)."""
+    import reprlib
+
+    r = reprlib.Repr()
+    r.maxlevel, r.maxdict, r.maxlist, r.maxtuple, r.maxset = 3, 8, 8, 8, 8
+    r.maxstring, r.maxother, r.maxlong = limit, limit, 40
+    text = r.repr(value)
+    return text if len(text) <= limit else text[: limit - 3] + "..."
+
+
+@dataclass(frozen=True)
+class WrapperKeyword:
+    """A keyword an allowed wrapper takes from a run config: ``kind`` ``"int"`` or
+    ``"number"`` (finite), in ``[low, high]``."""
+
+    kind: str
+    low: float
+    high: float
+
+    def check(self, wrapper: str, name: str, value: Any) -> None:
+        """:class:`UserError` naming the wrapper and keyword unless ``value`` fits."""
+        import math
+
+        is_int = isinstance(value, int) and not isinstance(value, bool)
+        ok = (is_int if self.kind == "int" else
+              (is_int or isinstance(value, float)) and math.isfinite(value))
+        if not ok or not self.low <= value <= self.high:
+            what = "an int" if self.kind == "int" else "a number"
+            raise UserError(f"env_wrapper {wrapper}: {name} must be {what} in "
+                            f"[{self.low:g}, {self.high:g}] (got {short_repr(value)})")
+
+
+_TIME_FEATURE = {"max_steps": WrapperKeyword("int", 1, 1_000_000)}
+_ACTION_HISTORY = {"n": WrapperKeyword("int", 1, 100)}
+_RESIDUAL = {"delta_deg": WrapperKeyword("number", 1e-3, 30.0),
+             "max_offset_deg": WrapperKeyword("number", 1e-3, 30.0)}
+#: The wrapper classes an ``env_wrapper`` entry may name (dotted path -> the keywords it may
+#: set, each checked before the class is built). Only observation / action transforms: nothing
+#: that writes files, renders or runs a command. Published paths and the classes' homes.
+ALLOWED_WRAPPERS: dict[str, dict[str, WrapperKeyword]] = {
+    "agents.time_feature.TimeFeature": _TIME_FEATURE,
+    "agents.wrappers.time_feature.TimeFeature": _TIME_FEATURE,
+    "agents.action_history.ActionHistory": _ACTION_HISTORY,
+    "agents.wrappers.action_history.ActionHistory": _ACTION_HISTORY,
+    "agents.residual.ResidualWrapper": _RESIDUAL,
+    "agents.wrappers.residual.ResidualWrapper": _RESIDUAL,
+    "gymnasium.wrappers.FrameStackObservation": {"stack_size": WrapperKeyword("int", 1, 16)},
+}
+#: Most wrappers in one ``env_wrapper`` entry.
+MAX_WRAPPERS = 8
 
 
 def wrapper_list(spec: Any) -> list[tuple[type, dict[str, Any]]]:
     """Wrapper classes and keywords from an ``env_wrapper`` entry (RL Zoo syntax).
 
-    ``spec`` is None, a dotted class path, or a list of dotted paths and one-key mappings
-    ``{path: {keyword: value}}``, applied in order (innermost first). A path must name a
-    ``gymnasium.Wrapper`` subclass in :data:`WRAPPER_MODULES` (checked before any import, then
-    on the imported object); anything else raises :class:`UserError`, so a run config from
-    elsewhere cannot make the loader import or call arbitrary code.
+    ``spec`` is None, a dotted class path, or a list (at most :data:`MAX_WRAPPERS`) of dotted
+    paths and one-key mappings ``{path: {keyword: value}}``, applied in order (innermost
+    first). A path must be a key of :data:`ALLOWED_WRAPPERS` and its keywords the ones listed
+    there, in range; this is checked before anything is imported, so a run config from
+    elsewhere cannot make the loader import a module (or run its code), write files, or
+    allocate without bound. Anything else raises :class:`UserError`.
     """
     import importlib
 
     if spec is None:
         return []
     items = spec if isinstance(spec, list) else [spec]
+    if len(items) > MAX_WRAPPERS:
+        raise UserError(f"env_wrapper: at most {MAX_WRAPPERS} wrappers (got {len(items)})")
     out = []
     for item in items:
         if isinstance(item, dict) and len(item) == 1:
             path, kwargs = next(iter(item.items()))
             if kwargs is not None and not isinstance(kwargs, dict):
-                raise UserError(f"env_wrapper {path!r}: keywords must be a mapping")
+                raise UserError(f"env_wrapper {short_repr(path)}: keywords must be a mapping")
             kwargs = dict(kwargs or {})
         elif isinstance(item, str):
             path, kwargs = item, {}
         else:
             raise UserError(f"env_wrapper items must be 'module.Class' or {{path: kwargs}} "
-                            f"(got {item!r})")
-        module, _, name = str(path).rpartition(".")
-        allowed = any(module == m or module.startswith(m + ".") for m in WRAPPER_MODULES)
-        if not allowed or not name.isidentifier() or name.startswith("_"):
-            raise UserError(f"env_wrapper {path!r} refused: only wrapper classes from "
-                            f"{', '.join(WRAPPER_MODULES)} are allowed")
-        try:
-            cls = getattr(importlib.import_module(module), name)
-        except (ImportError, AttributeError, ValueError):
-            raise UserError(f"env_wrapper: cannot import {path!r}") from None
+                            f"(got {short_repr(item)})")
+        if not isinstance(path, str) or path not in ALLOWED_WRAPPERS:
+            raise UserError(f"env_wrapper {short_repr(path)} refused: only these wrapper "
+                            f"classes are allowed: {', '.join(ALLOWED_WRAPPERS)}")
+        allowed = ALLOWED_WRAPPERS[path]
+        for key, value in kwargs.items():
+            if key not in allowed:
+                raise UserError(f"env_wrapper {path}: keyword {short_repr(key)} is not "
+                                f"allowed (allowed: {', '.join(allowed) or 'none'})")
+            allowed[key].check(path, key, value)
+        module, _, name = path.rpartition(".")
+        cls = getattr(importlib.import_module(module), name)
         if not (isinstance(cls, type) and issubclass(cls, gym.Wrapper)):
             raise UserError(f"env_wrapper {path!r} refused: not a gymnasium.Wrapper class")
         out.append((cls, kwargs))
@@ -107,12 +162,14 @@ def make_env(
     try:
         env = gym.make(env_id, **kwargs)
     except (TypeError, ValueError) as exc:
-        raise UserError(f"bad env kwargs for {env_id} {kwargs}: {exc}") from None
+        raise UserError(f"bad env kwargs for {env_id} {short_repr(kwargs)}: "
+                        f"{str(exc)[:300]}") from None
     for cls, wkw in wrappers:
         try:
             env = cls(env, **wkw)
-        except TypeError as exc:
-            raise UserError(f"env_wrapper {cls.__name__}: {exc}") from None
+        except (TypeError, ValueError) as exc:
+            env.close()
+            raise UserError(f"env_wrapper {cls.__name__}: {str(exc)[:300]}") from None
     return env
 
 

@@ -8,7 +8,7 @@ the scripted policy declares, with the benchmark's 1 mm / 1 deg success toleranc
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any
 
 from agents.common.cli import UserError
@@ -26,7 +26,11 @@ class PolicyChoice:
     (``policy``, one of :data:`SCRIPTED`), exactly one of the two; ``env``: the env id (a
     model's own by default, ``SoftHand-v0`` for ``paper`` / ``handling``; the goal policies
     need one); ``grasp_deg``: the grasp angle (deg) of ``handling``; ``device`` and
-    ``trust_model``: how a model is loaded (:class:`~agents.runs.loading.ModelPolicy`)."""
+    ``trust_model``: how a model is loaded (:class:`~agents.runs.loading.ModelPolicy`);
+    ``task_kwargs``: task keywords the user sets on purpose (the evaluation is then not the
+    benchmark; see :mod:`agents.runs.task_keywords`). Without them a model is played on its
+    id's task: its config's agent keywords only (a config that sets a task keyword otherwise
+    than the id is refused)."""
 
     model: str | None = None
     policy: str | None = None
@@ -34,6 +38,7 @@ class PolicyChoice:
     grasp_deg: float = 6.0
     device: str = "cpu"
     trust_model: bool = False
+    task_kwargs: dict[str, Any] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
         if (self.model is None) == (self.policy is None):
@@ -49,7 +54,8 @@ def build(choice: PolicyChoice) -> tuple[Any, str, dict[str, Any], Any, str]:
                                   trust_model=choice.trust_model)
         if choice.env is not None and choice.env != policy.env_id:
             raise UserError(f"the model was trained on {policy.env_id}, not {choice.env}")
-        env_id, kwargs, wrapper = policy.env_id, dict(policy.env_kwargs), policy.env_wrapper
+        env_id, wrapper = policy.env_id, policy.env_wrapper
+        kwargs, _ = policy.evaluation_kwargs(choice.task_kwargs)
         name = f"{policy.algo}"
     else:
         from agents.scripted import HandlingProcessPolicy, ModelBasedPolicy, PaperSequencePolicy
@@ -79,4 +85,9 @@ def build(choice: PolicyChoice) -> tuple[Any, str, dict[str, Any], Any, str]:
             kwargs["max_episode_steps"] = policy.episode_steps
         name = str(choice.policy)
     kwargs.update(success_kwargs(env_id))  # benchmark tolerance, whatever the training
+    if choice.policy is not None and choice.task_kwargs:
+        from agents.runs.task_keywords import evaluation_kwargs
+
+        evaluation_kwargs(env_id, {}, choice.task_kwargs)  # task keywords only, in range
+    kwargs.update(choice.task_kwargs)  # the user's, on purpose (labelled not the benchmark)
     return policy, env_id, kwargs, wrapper, name

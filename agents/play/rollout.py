@@ -8,6 +8,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any
@@ -102,7 +103,8 @@ class EvaluationResults:
     """An evaluation as ``results.yml`` holds it: env id, the policy (model path or scripted
     name), the ``gym.make`` keywords and wrappers it was played with, the first goal seed, the
     ``--goals`` file (None: seeded goals), the summary of :func:`evaluate` and the episode
-    records (without their trajectories)."""
+    records (without their trajectories); ``benchmark``: whether the task is the id's (no
+    ``task_overrides``)."""
 
     env_id: str
     policy: str
@@ -112,11 +114,15 @@ class EvaluationResults:
     goals_file: str | None
     summary: dict[str, float]
     episodes: list[dict[str, Any]]
+    #: Task keywords the user set on purpose (empty: the id's task, the benchmark).
+    task_overrides: dict[str, Any] = dataclasses.field(default_factory=dict)
 
     def to_yaml(self) -> dict[str, Any]:
         """The mapping written to ``results.yml`` (keys in field order)."""
         return {
             "env_id": self.env_id,
+            "benchmark": not self.task_overrides,
+            "task_overrides": dict(self.task_overrides),
             "policy": self.policy,
             "env_kwargs": self.env_kwargs,
             "env_wrapper": self.env_wrapper,

@@ -46,6 +46,7 @@ NUMERIC_RANGES: dict[str, tuple[float, float, bool]] = {
     "vf_coef": (0.0, 1e3, False), "max_grad_norm": (0.0, 1e6, False),
     "learning_rate": (0.0, 10.0, False), "clip_range": (0.0, 10.0, False),
     "ent_coef": (0.0, 1e3, False),
+    "n_envs": (1, 4096, True),
 }
 #: Keys whose value may be a ``lin_<v>`` schedule (as in RL Zoo).
 SCHEDULE_KEYS = ("learning_rate", "clip_range", "clip_range_vf")
@@ -89,6 +90,7 @@ def load_hyperparams(algo: str, env_id: str, conf_file: str | None = None) -> di
         raise UserError(f"{path}: entry {env_id!r} lacks required key(s) {', '.join(missing)}")
     hp = dict(entry)
     hp.setdefault("n_envs", 1)
+    check_numeric("n_envs", hp["n_envs"])
     hp.setdefault("normalize", False)
     hp.setdefault("env_kwargs", {})
     if not isinstance(hp["env_kwargs"], dict):

@@ -10,6 +10,8 @@ A run is laid out as RL Zoo lays out its runs (``rl_zoo3.train`` writes the same
                                       ``softhand`` entry: env signature, seed, validation
                                       results, versions and the sha256 of every model file
         <env_id>/args.yml             command-line arguments (the zoo's; env_kwargs)
+        <env_id>/manifest.yml         sha256 of config.yml's loading content (hyper-parameters,
+                                      algo, env signature); config.yml records its sha256
         <env_id>/vecnormalize.npz     observation statistics as plain arrays (read here)
         <env_id>/vecnormalize.pkl     the same as SB3 pickles it (read by rl_zoo3 only)
         best_model.zip                best on the validation goals (+ best_model_vecnormalize.*)
@@ -25,6 +27,7 @@ MODELS_DIR = Path(__file__).resolve().parent.parent / "models"
 #: Files of a run's parameter directory ``<run>/<env id>/``.
 CONFIG_FILE = "config.yml"
 ARGS_FILE = "args.yml"
+MANIFEST_FILE = "manifest.yml"
 STATS_NPZ = "vecnormalize.npz"
 STATS_PKL = "vecnormalize.pkl"
 #: Key of our run record inside the zoo's ``config.yml``.

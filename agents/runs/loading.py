@@ -23,20 +23,34 @@ import gymnasium as gym
 import numpy as np
 
 from agents.common.cli import UserError
-from agents.common.env_factory import make_env
+from agents.common.env_factory import make_env, short_repr, wrapper_list
 from agents.runs.hyperparams import ALGOS, algo_class, normalize_kwargs
 from agents.runs.layout import (
     ARGS_FILE,
     BEST_MODEL,
     CONFIG_FILE,
+    MANIFEST_FILE,
     MODELS_DIR,
     RECORD_KEY,
     STATS_NPZ,
 )
-from agents.runs.model_files import ModelFileError, check_sha256, load_sb3
+from agents.runs.model_files import (
+    ModelFileError,
+    check_sha256,
+    check_sha_record,
+    config_digest,
+    load_sb3,
+)
 from agents.runs.normalization import ObsNormalizer
+from agents.runs.task_keywords import (
+    AGENT_KEYS,
+    MAX_EPISODE_STEPS,
+    evaluation_kwargs,
+    task_keys,
+)
 from agents.runs.zoo_dialect import zoo_yaml_load
 
+TASK_KEY_SET = frozenset(task_keys())
 _CHECKPOINT = re.compile(r"rl_model_(\d+)_steps")
 
 
@@ -83,14 +97,13 @@ def shipped_models() -> dict[str, Path]:
 
 
 def _read_yaml(path: Path) -> dict[str, Any]:
-    import yaml
+    from softhand_env.physics.safe_yaml import read_bounded
 
     try:
-        data = zoo_yaml_load(path.read_text())
-    except yaml.YAMLError as exc:
-        msg = " ".join(str(exc).split())
+        data = zoo_yaml_load(read_bounded(path), source=str(path))
+    except (ValueError, TypeError) as exc:
         raise UserError(f"{path}: not readable as the zoo's YAML (plain values and OrderedDict "
-                        f"only): {msg}") from None
+                        f"only, no aliases): {' '.join(str(exc).split())[:300]}") from None
     if not isinstance(data, dict):
         raise UserError(f"{path}: expected a mapping")
     return data
@@ -136,6 +149,11 @@ def resolve_model(spec: str | Path) -> ModelRun:
         raise UserError(f"no <env id>/{CONFIG_FILE} beside {p} (one expected, found "
                         f"{len(params)})")
     env_id = params[0].name
+    from softhand_env.envs import ENV_IDS
+
+    if env_id not in ENV_IDS:  # before anything builds another package's env
+        raise UserError(f"{p}: the run is of {short_repr(env_id)}, not a soft-hand environment "
+                        f"({', '.join(ENV_IDS)})")
     hyperparams = _read_yaml(params[0] / CONFIG_FILE)
     record = hyperparams.pop(RECORD_KEY, None) or {}
     if not isinstance(record, dict):
@@ -143,9 +161,9 @@ def resolve_model(spec: str | Path) -> ModelRun:
     args_path = params[0] / ARGS_FILE
     args = _read_yaml(args_path) if args_path.is_file() else {}
     algo = args.get("algo") or record.get("algo") or run_dir.parent.name
-    if algo not in ALGOS:
-        raise UserError(f"{p}: unknown algo {algo!r} (from args.yml or the folder name; "
-                        f"known: {', '.join(ALGOS)})")
+    if not isinstance(algo, str) or algo not in ALGOS:
+        raise UserError(f"{p}: unknown algo {short_repr(algo)} (from args.yml or the folder "
+                        f"name; known: {', '.join(ALGOS)})")
     npz, pkl = _stats_files(p, run_dir, env_id)
     return ModelRun(zip_path=p, run_dir=run_dir, env_id=env_id, algo=algo,
                     hyperparams=hyperparams, record=record, args=args,
@@ -158,8 +176,12 @@ class ModelPolicy:
 
     Loading runs no code from the model's files: the zip's pickled entries are rebuilt from the
     run config and the env, weights are read with ``weights_only=True``, statistics from the
-    ``.npz``, ``env_wrapper`` entries limited to an allow-list, and every file is checked
-    against the sha256 recorded in ``config.yml``.
+    ``.npz``, ``env_wrapper`` entries limited to an allow-list of classes with checked
+    keywords, every file is checked against the sha256 recorded in ``config.yml`` and
+    ``config.yml`` against the digest in its manifest (:mod:`agents.runs.layout`); every file
+    is read within a size bound. The run's env keywords are checked (known keywords, no
+    rendering, a bounded ``max_episode_steps``); :meth:`evaluation_kwargs` gives the
+    keywords of the id's benchmark task (:mod:`agents.runs.task_keywords`).
 
     Parameters
     ----------
@@ -186,10 +208,14 @@ class ModelPolicy:
         #: Wrappers of the run (``env_wrapper`` entry).
         self.env_wrapper = hp.get("env_wrapper")
         self.episode_steps: int | None = None
+        wrapper_list(self.env_wrapper)  # the allow-list and its keywords, before any file check
+        self._check_env_kwargs()
         norm = normalize_kwargs(hp.get("normalize"))
         stats = run.stats_npz if run.stats_npz is not None else run.stats_pkl
         self._check_files(stats if norm is not None else None)
-        probe = make_env(self.env_id, self.env_kwargs, self.env_wrapper)
+        # the spaces depend on the agent's keywords only; the task's are the benchmark's
+        probe = make_env(self.env_id, {k: v for k, v in self.env_kwargs.items()
+                                       if k in AGENT_KEYS}, self.env_wrapper)
         obs_space, act_space = probe.observation_space, probe.action_space
         probe.close()
         extra = {"buffer_size": 1} if self.algo in ("sac", "td3", "tqc") else {}
@@ -206,6 +232,33 @@ class ModelPolicy:
             self.normalizer = self._load_stats(trust_model)
         self.recurrent = self.algo == "ppo_lstm"
 
+    def _check_env_kwargs(self) -> None:
+        """The run's env keywords as a mapping of known keywords, without viewer keywords, with
+        a bounded ``max_episode_steps`` (UserError otherwise; the task keywords are compared
+        with the benchmark's by :meth:`evaluation_kwargs`)."""
+        source = f"{self.run.params_dir / CONFIG_FILE}"
+        kwargs = self.run.hyperparams.get("env_kwargs")
+        if self.run.args.get("env_kwargs") is not None:
+            kwargs, source = self.run.args["env_kwargs"], f"{self.run.params_dir / ARGS_FILE}"
+        if kwargs is not None and not isinstance(kwargs, dict):
+            raise UserError(f"{source}: env_kwargs must be a mapping")
+        evaluation_kwargs(self.env_id, {k: v for k, v in (kwargs or {}).items()
+                                        if k not in TASK_KEY_SET}, source=source)
+        steps = (kwargs or {}).get("max_episode_steps")
+        if steps is not None and (isinstance(steps, bool) or not isinstance(steps, int)
+                                  or not 1 <= steps <= MAX_EPISODE_STEPS):
+            raise UserError(f"{source}: max_episode_steps must be an int in [1, "
+                            f"{MAX_EPISODE_STEPS}] (got {short_repr(steps)})")
+
+    def evaluation_kwargs(self, overrides: dict[str, Any] | None = None
+                          ) -> tuple[dict[str, Any], dict[str, Any]]:
+        """``gym.make`` keywords to evaluate the model on its id's benchmark task, and the
+        task keywords ``overrides`` changed (see
+        :func:`agents.runs.task_keywords.evaluation_kwargs`: a run config that sets a task
+        keyword otherwise than the id is refused, UserError)."""
+        source = f"{self.run.params_dir / CONFIG_FILE}"
+        return evaluation_kwargs(self.env_id, self.env_kwargs, overrides, source=source)
+
     def _check_files(self, stats: Path | None) -> None:
         run = self.run
         sums = run.record.get("sha256")
@@ -216,9 +269,20 @@ class ModelPolicy:
         files = [run.zip_path] + ([stats] if stats is not None else [])
         if (run.params_dir / ARGS_FILE).is_file():
             files.append(run.params_dir / ARGS_FILE)
+        manifest = run.params_dir / MANIFEST_FILE
         try:
+            check_sha_record(sums)
             for f in files:
                 check_sha256(run.run_dir, f, sums)
+            if not manifest.is_file():
+                raise ModelFileError(f"{run.env_id}/{MANIFEST_FILE} is missing: the content "
+                                     f"of {CONFIG_FILE} cannot be checked (re-seal a run you "
+                                     "trust with python -m agents.runs.writing RUN_DIR)")
+            check_sha256(run.run_dir, manifest, sums)
+            sealed = _read_yaml(manifest).get("config_sha256")
+            if sealed != config_digest(run.hyperparams, run.record):
+                raise ModelFileError(f"{CONFIG_FILE} does not match the digest in "
+                                     f"{MANIFEST_FILE} (the run config was edited)")
         except ModelFileError as exc:
             raise UserError(f"refusing {self.path}: {exc}") from None
 
@@ -273,8 +337,8 @@ class ModelPolicy:
             try:
                 check_model_compatibility(saved, env, ignore=tuple(ignore))
             except ValueError as exc:
-                raise UserError(f"{self.path}: {exc} (retrain, or pass --ignore-signature "
-                                "FIELD to run it anyway)") from None
+                raise UserError(f"{self.path}: {str(exc)[:500]} (retrain, or pass "
+                                "--ignore-signature FIELD to run it anyway)") from None
         for name in ("observation_space", "action_space"):
             want, got = getattr(self.model, name).shape, getattr(env, name).shape
             if want != got:

@@ -33,17 +33,109 @@ REBUILT_ENTRIES = ("policy_class", "policy_kwargs", "observation_space", "action
                    *RUNTIME_ENTRIES)
 
 
+#: Entries always taken from the run config and the env, whatever the zip's ``data`` says.
+CONFIG_ENTRIES = ("policy_class", "policy_kwargs", "observation_space", "action_space")
+
+
 class ModelFileError(ValueError):
     """A model file that cannot be loaded safely (the message says why)."""
 
 
+#: Bounds on an SB3 zip, checked before (declared sizes) and while (streamed sizes) any
+#: member is decompressed: members, the ``data`` JSON, any one member, all members (bytes).
+MAX_ZIP_MEMBERS = 64
+MAX_DATA_BYTES = 8 << 20
+MAX_MEMBER_BYTES = 256 << 20
+MAX_ZIP_BYTES = 512 << 20
+#: Largest zip file read (bytes, compressed).
+MAX_ZIP_FILE_BYTES = 512 << 20
+#: Deepest JSON nesting of ``data``.
+MAX_JSON_DEPTH = 32
+
+
+def _json_depth_ok(text: str, limit: int) -> bool:
+    """Whether the brackets of a JSON text nest at most ``limit`` deep (strings skipped)."""
+    depth, in_string, escaped = 0, False, False
+    for ch in text:
+        if in_string:
+            if escaped:
+                escaped = False
+            elif ch == "\\":
+                escaped = True
+            elif ch == '"':
+                in_string = False
+        elif ch == '"':
+            in_string = True
+        elif ch in "[{":
+            depth += 1
+            if depth > limit:
+                return False
+        elif ch in "]}":
+            depth -= 1
+    return True
+
+
+def load_json_bounded(text: str | bytes, what: str, limit: int = MAX_JSON_DEPTH) -> Any:
+    """``json.loads`` refused (ValueError naming ``what``) beyond ``limit`` levels of nesting
+    or for integers of more than 30 digits, before it recurses or converts."""
+    if isinstance(text, bytes):
+        text = text.decode("utf-8")
+    if not _json_depth_ok(text, limit):
+        raise ValueError(f"{what}: JSON nested deeper than {limit} levels")
+
+    def bounded_int(digits: str) -> int:
+        if len(digits.lstrip("-")) > 30:
+            raise ValueError(f"{what}: integer longer than 30 digits")
+        return int(digits)
+
+    return json.loads(text, parse_int=bounded_int)
+
+
+def check_zip_bounds(zip_path: str | Path) -> None:
+    """ModelFileError unless the zip has at most :data:`MAX_ZIP_MEMBERS` members whose sizes,
+    as declared in its directory AND as decompressed (streamed, stopped at the bound), stay
+    within :data:`MAX_DATA_BYTES` (``data``), :data:`MAX_MEMBER_BYTES` (any member) and
+    :data:`MAX_ZIP_BYTES` (all): a zip bomb is refused before it fills memory."""
+    path = Path(zip_path)
+    try:
+        if path.stat().st_size > MAX_ZIP_FILE_BYTES:
+            raise ModelFileError(f"larger than {MAX_ZIP_FILE_BYTES} bytes")
+        with zipfile.ZipFile(path) as archive:
+            infos = archive.infolist()
+            if len(infos) > MAX_ZIP_MEMBERS:
+                raise ModelFileError(f"more than {MAX_ZIP_MEMBERS} members")
+            total = 0
+            for info in infos:
+                bound = MAX_DATA_BYTES if info.filename == "data" else MAX_MEMBER_BYTES
+                if info.file_size > bound or total + info.file_size > MAX_ZIP_BYTES:
+                    raise ModelFileError(f"member {info.filename[:80]!r} declares "
+                                         f"{info.file_size} bytes (at most {bound})")
+                size = 0
+                with archive.open(info) as fh:
+                    while block := fh.read(1 << 20):
+                        size += len(block)
+                        if size > bound or total + size > MAX_ZIP_BYTES:
+                            raise ModelFileError(f"member {info.filename[:80]!r} inflates "
+                                                 f"beyond {bound} bytes")
+                total += size
+    except (OSError, zipfile.BadZipFile, EOFError, ValueError, NotImplementedError) as exc:
+        if isinstance(exc, ModelFileError):
+            raise
+        raise ModelFileError(f"not an SB3 model file ({type(exc).__name__}: "
+                             f"{str(exc)[:200]})") from None
+
+
 def zip_data(zip_path: str | Path) -> dict[str, Any]:
-    """The ``data`` JSON of an SB3 zip, parsed as JSON only (nothing unpickled)."""
+    """The ``data`` JSON of an SB3 zip, parsed as JSON only (nothing unpickled), within the
+    bounds of :func:`check_zip_bounds` and :data:`MAX_JSON_DEPTH`."""
+    check_zip_bounds(zip_path)
     try:
         with zipfile.ZipFile(zip_path) as archive:
-            data = json.loads(archive.read("data"))
-    except (OSError, KeyError, zipfile.BadZipFile, UnicodeDecodeError, ValueError) as exc:
-        raise ModelFileError(f"not an SB3 model file ({type(exc).__name__}: {exc})") from None
+            data = load_json_bounded(archive.read("data"), "data")
+    except (OSError, KeyError, zipfile.BadZipFile, UnicodeDecodeError, ValueError,
+            RecursionError) as exc:
+        raise ModelFileError(f"not an SB3 model file ({type(exc).__name__}: "
+                             f"{str(exc)[:200]})") from None
     if not isinstance(data, dict):
         raise ModelFileError("not an SB3 model file (data is not a JSON object)")
     return data
@@ -84,6 +176,7 @@ def rebuilt_entries(algo_cls: Any, hyperparams: dict[str, Any],
         policy_kwargs = policy_kwargs_from(hyperparams.get("policy_kwargs") or {})
     except (TypeError, ValueError) as exc:
         raise ModelFileError(f"policy_kwargs: {exc}") from None
+    check_network_size(policy_kwargs.get("net_arch"), observation_space, action_space)
     out: dict[str, Any] = {
         "policy_class": aliases[policy],
         "policy_kwargs": policy_kwargs,
@@ -110,6 +203,54 @@ def rebuilt_entries(algo_cls: Any, hyperparams: dict[str, Any],
     return out
 
 
+#: Most parameters of a policy's networks (actor and critics together), and widest layer.
+MAX_PARAMETERS = 5_000_000
+MAX_LAYER_WIDTH = 4096
+MAX_LAYERS = 16
+
+
+def _space_size(space: spaces.Space) -> int:
+    import numpy as np
+
+    if isinstance(space, spaces.Dict):
+        return sum(_space_size(s) for s in space.spaces.values())
+    return int(np.prod(space.shape or (1,)))
+
+
+def check_network_size(net_arch: Any, observation_space: spaces.Space,
+                       action_space: spaces.Space) -> int:
+    """Parameters of the MLPs ``net_arch`` describes (a list of widths shared by the actor and
+    the critic, or a mapping ``pi``/``vf``/``qf`` -> widths; None: SB3's 64-64), from the
+    spaces' sizes, BEFORE torch builds them; ModelFileError beyond :data:`MAX_PARAMETERS`,
+    :data:`MAX_LAYERS` layers or :data:`MAX_LAYER_WIDTH` units."""
+    n_in, n_out = _space_size(observation_space), _space_size(action_space)
+    if net_arch is None:
+        net_arch = [64, 64]
+    if isinstance(net_arch, list):
+        arch = {"pi": net_arch, "vf": net_arch}
+    elif isinstance(net_arch, dict):
+        arch = dict(net_arch)
+    else:
+        raise ModelFileError("policy_kwargs.net_arch must be a list or a mapping")
+    total = 0
+    for name, widths in arch.items():
+        if name not in ("pi", "vf", "qf") or not isinstance(widths, list):
+            raise ModelFileError(f"policy_kwargs.net_arch: {str(name)[:40]!r} must be pi, vf "
+                                 "or qf with a list of layer widths")
+        if len(widths) > MAX_LAYERS or not all(
+                isinstance(w, int) and not isinstance(w, bool) and 1 <= w <= MAX_LAYER_WIDTH
+                for w in widths):
+            raise ModelFileError(f"policy_kwargs.net_arch.{name}: at most {MAX_LAYERS} layers "
+                                 f"of 1 .. {MAX_LAYER_WIDTH} units")
+        head = 1 if name == "vf" else n_out
+        sizes = [n_in + (n_out if name == "qf" else 0), *widths, head]
+        total += sum((a + 1) * b for a, b in zip(sizes[:-1], sizes[1:], strict=True))
+    if total > MAX_PARAMETERS:
+        raise ModelFileError(f"policy_kwargs.net_arch has {total} parameters (at most "
+                             f"{MAX_PARAMETERS})")
+    return total
+
+
 def load_sb3(algo_cls: Any, zip_path: str | Path, hyperparams: dict[str, Any],
              observation_space: spaces.Space, action_space: spaces.Space,
              device: str = "cpu", trust: bool = False, **kwargs: Any) -> Any:
@@ -128,7 +269,9 @@ def load_sb3(algo_cls: Any, zip_path: str | Path, hyperparams: dict[str, Any],
             "loading them would run code from the file (pass --trust-model only if you trust "
             "where it came from)")
     custom = rebuilt_entries(algo_cls, hyperparams, observation_space, action_space)
-    custom = {k: v for k, v in custom.items() if k in pickled}
+    # the network and the spaces always come from the run config and the env: a zip's own
+    # (plain JSON) policy_kwargs or spaces are ignored, never merged
+    custom = {k: v for k, v in custom.items() if k in pickled or k in CONFIG_ENTRIES}
     return algo_cls.load(str(zip_path), custom_objects=custom, device=device, **kwargs)
 
 
@@ -146,11 +289,38 @@ def record_sha256(run_dir: Path, files: list[Path]) -> dict[str, str]:
     return {f.relative_to(run_dir).as_posix(): sha256(f) for f in sorted(files)}
 
 
+def check_sha_record(record: Any) -> dict[str, str]:
+    """The ``sha256`` entry of a run record, checked: a mapping of relative paths to 64-digit
+    hex strings (ModelFileError otherwise)."""
+    if not isinstance(record, dict) or len(record) > 10_000:
+        raise ModelFileError(f"sha256 must be a mapping of file -> hex digest (got "
+                             f"{type(record).__name__})")
+    for key, value in record.items():
+        if not (isinstance(key, str) and isinstance(value, str) and len(value) == 64
+                and all(c in "0123456789abcdef" for c in value)):
+            raise ModelFileError(f"sha256 entry {str(key)[:80]!r}: expected a 64-digit hex "
+                                 "string")
+    return record
+
+
 def check_sha256(run_dir: Path, path: Path, record: dict[str, str]) -> None:
     """ModelFileError unless ``path`` is in ``record`` with its current checksum."""
     key = path.relative_to(run_dir).as_posix()
-    if key not in record:
+    if key not in check_sha_record(record):
         raise ModelFileError(f"{key} has no checksum in the run's config.yml")
     if sha256(path) != record[key]:
         raise ModelFileError(f"{key} does not match the checksum recorded in the run's "
                              "config.yml (the file was altered or swapped)")
+
+
+#: Keys of the run record that loading reads (covered by :func:`config_digest`).
+LOADING_RECORD_KEYS = ("algo", "env_id", "env_signature")
+
+
+def config_digest(hyperparams: dict[str, Any], record: dict[str, Any]) -> str:
+    """sha256 of what loading reads from ``config.yml``: the hyper-parameters (everything but
+    the run record) and the record's :data:`LOADING_RECORD_KEYS`, as canonical JSON."""
+    content = {"hyperparams": hyperparams,
+               "record": {k: record.get(k) for k in LOADING_RECORD_KEYS}}
+    text = json.dumps(content, sort_keys=True, default=repr, separators=(",", ":"))
+    return hashlib.sha256(text.encode()).hexdigest()

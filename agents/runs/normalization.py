@@ -55,6 +55,48 @@ def save_stats(vecnormalize: Any, path: str | Path) -> Path:
     return path
 
 
+#: Bounds on a statistics file, checked on its zip directory and array headers before any
+#: array is read: members, elements per array, bytes per member.
+MAX_NPZ_MEMBERS = 256
+MAX_ELEMENTS = 1_000_000
+MAX_NPZ_MEMBER_BYTES = 16 << 20
+#: Allowed ``epsilon`` and ``clip_obs`` (VecNormalize's defaults are 1e-8 and 10).
+EPSILON_RANGE = (1e-12, 1.0)
+CLIP_RANGE = (1e-3, 1e6)
+
+
+def check_npz_headers(path: str | Path) -> None:
+    """ValueError unless every member of the ``.npz`` declares at most
+    :data:`MAX_NPZ_MEMBER_BYTES` bytes and holds a plain (non-object) array of at most
+    :data:`MAX_ELEMENTS` elements, read from its ``.npy`` header alone (nothing allocated)."""
+    import zipfile
+
+    from numpy.lib import format as npy
+
+    try:
+        with zipfile.ZipFile(path) as archive:
+            infos = archive.infolist()
+            if len(infos) > MAX_NPZ_MEMBERS:
+                raise ValueError(f"{path}: more than {MAX_NPZ_MEMBERS} arrays")
+            for info in infos:
+                name = info.filename[:80]
+                if info.file_size > MAX_NPZ_MEMBER_BYTES:
+                    raise ValueError(f"{path}: array {name!r} declares {info.file_size} bytes")
+                with archive.open(info) as fh:
+                    version = npy.read_magic(fh)
+                    read = (npy.read_array_header_1_0 if version == (1, 0)
+                            else npy.read_array_header_2_0)
+                    shape, _, dtype = read(fh, max_header_size=10_000)
+                count = int(np.prod(shape, dtype=np.float64)) if shape else 1
+                if dtype.hasobject or count > MAX_ELEMENTS or (
+                        count * dtype.itemsize > info.file_size):
+                    raise ValueError(f"{path}: array {name!r} has shape {shape[:4]} of "
+                                     f"{dtype} (plain arrays of at most {MAX_ELEMENTS} "
+                                     "elements that the file holds)")
+    except (OSError, zipfile.BadZipFile, EOFError) as exc:
+        raise ValueError(f"{path}: not a statistics file ({type(exc).__name__})") from None
+
+
 def _moments(arrays: dict[str, np.ndarray], suffix: str, path: str | Path,
              size: int | None) -> tuple[np.ndarray, np.ndarray]:
     """(mean, var) of one observation (or one Dict key, ``suffix = ".<key>"``), checked."""
@@ -82,6 +124,7 @@ class ObsNormalizer:
     """
 
     def __init__(self, path: str | Path, obs_dim: int | dict[str, int] | None = None):
+        check_npz_headers(path)
         try:
             with np.load(path, allow_pickle=False) as data:
                 names = list(data.keys())
@@ -123,8 +166,11 @@ class ObsNormalizer:
         self.clip_obs = float(arrays["clip_obs"])
         self.epsilon = float(arrays["epsilon"])
         self.norm_obs = bool(arrays["norm_obs"])
-        if self.clip_obs <= 0 or self.epsilon <= 0:
-            raise ValueError(f"{path}: clip_obs and epsilon must be > 0")
+        if not (EPSILON_RANGE[0] <= self.epsilon <= EPSILON_RANGE[1]
+                and CLIP_RANGE[0] <= self.clip_obs <= CLIP_RANGE[1]):
+            raise ValueError(f"{path}: epsilon must be in [{EPSILON_RANGE[0]:g}, "
+                             f"{EPSILON_RANGE[1]:g}] and clip_obs in [{CLIP_RANGE[0]:g}, "
+                             f"{CLIP_RANGE[1]:g}] (got {self.epsilon:g}, {self.clip_obs:g})")
 
     def load_into(self, vecnormalize: Any) -> None:
         """Copy these moments (and counts, where stored) into the running statistics of an SB3
@@ -140,7 +186,8 @@ class ObsNormalizer:
             rms[key].count = self.counts.get(key) or rms[key].count
 
     def _one(self, obs: np.ndarray, mean: np.ndarray, var: np.ndarray) -> np.ndarray:
-        z = (obs - mean) / np.sqrt(var + self.epsilon)
+        with np.errstate(over="ignore"):  # a huge quotient is clipped below
+            z = (obs - mean) / np.sqrt(var + self.epsilon)
         return np.clip(z, -self.clip_obs, self.clip_obs).astype(np.float32)
 
     def __call__(self, obs: Any) -> Any:

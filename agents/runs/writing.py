@@ -5,7 +5,14 @@
 :mod:`agents.runs.loading` reads) and ``.pkl`` (SB3's pickle, what ``rl_zoo3.enjoy`` reads).
 :func:`write_run_config` writes ``<env id>/config.yml`` (the zoo's hyper-parameter
 ``OrderedDict`` plus our run record, with the sha256 of every model file of the run) and
-``<env id>/args.yml``.
+``<env id>/args.yml``; ``<env id>/manifest.yml`` holds the digest of ``config.yml``'s
+loading content (:func:`agents.runs.model_files.config_digest`) and is itself in the sha256
+record, so an edited run config is refused when loaded.
+
+Re-sealing a run after a change of the digest's definition (no retraining, no file but the
+manifest and the sha256 record changes; refused if a recorded file no longer matches)::
+
+    python -m agents.runs.writing RUN_DIR [RUN_DIR ...]
 """
 
 from __future__ import annotations
@@ -13,8 +20,8 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any
 
-from agents.runs.layout import ARGS_FILE, CONFIG_FILE, RECORD_KEY
-from agents.runs.model_files import record_sha256
+from agents.runs.layout import ARGS_FILE, CONFIG_FILE, MANIFEST_FILE, RECORD_KEY
+from agents.runs.model_files import config_digest, record_sha256
 from agents.runs.normalization import save_stats
 from agents.runs.records import RunRecord
 from agents.runs.zoo_dialect import zoo_yaml_dump
@@ -28,12 +35,13 @@ def save_vecnormalize(vecnormalize: Any, base: Path) -> None:
 
 
 def model_files(run_dir: Path, env_id: str) -> list[Path]:
-    """Files a model of the run is loaded from: zips, statistics, ``args.yml``."""
+    """Files a model of the run is loaded from: zips, statistics, ``args.yml``, the manifest."""
     params = run_dir / env_id
     files = [*run_dir.glob("*.zip"), *run_dir.glob("*_vecnormalize*.npz"),
              *run_dir.glob("*_vecnormalize*.pkl"), *params.glob("vecnormalize.*")]
-    if (params / ARGS_FILE).is_file():
-        files.append(params / ARGS_FILE)
+    for name in (ARGS_FILE, MANIFEST_FILE):
+        if (params / name).is_file():
+            files.append(params / name)
     return sorted(set(files))
 
 
@@ -49,9 +57,45 @@ def write_run_config(run_dir: Path, env_id: str, hyperparams: dict[str, Any],
                      record: RunRecord) -> Path:
     """``<env id>/config.yml``: ``hyperparams`` plus ``record`` under ``softhand`` with
     ``sha256`` of :func:`model_files` (written last, after every model file)."""
+    return _write_config(run_dir, env_id, hyperparams, record.to_yaml())
+
+
+def _write_config(run_dir: Path, env_id: str, hyperparams: dict[str, Any],
+                  saved: dict[str, Any], absent: dict[str, str] | None = None) -> Path:
     params = run_dir / env_id
     params.mkdir(parents=True, exist_ok=True)
-    saved = {**record.to_yaml(), "sha256": record_sha256(run_dir, model_files(run_dir, env_id))}
+    saved = {k: v for k, v in saved.items() if k != "sha256"}
+    zoo_yaml_dump({"config_sha256": config_digest(hyperparams, saved)}, params / MANIFEST_FILE)
+    saved["sha256"] = {**(absent or {}), **record_sha256(run_dir, model_files(run_dir, env_id))}
     path = params / CONFIG_FILE
     zoo_yaml_dump({**hyperparams, RECORD_KEY: saved}, path)
     return path
+
+
+def reseal(run_dir: Path) -> Path:
+    """Rewrite the manifest and the sha256 record of the run in ``run_dir`` (an existing run
+    whose every recorded file still has its recorded checksum; ValueError otherwise)."""
+    from agents.runs.model_files import check_sha256, check_sha_record
+    from agents.runs.zoo_dialect import zoo_yaml_load
+
+    configs = [d for d in sorted(Path(run_dir).iterdir()) if (d / CONFIG_FILE).is_file()]
+    if len(configs) != 1:
+        raise ValueError(f"{run_dir}: expected one <env id>/{CONFIG_FILE}")
+    env_id = configs[0].name
+    config = zoo_yaml_load((configs[0] / CONFIG_FILE).read_text(), str(configs[0]))
+    saved = config.pop(RECORD_KEY)
+    sums = check_sha_record(saved.get("sha256"))
+    absent = {}  # recorded files not shipped (e.g. best_model.zip): their entries are kept
+    for rel, digest in sums.items():
+        if not (Path(run_dir) / rel).is_file():
+            absent[rel] = digest
+        elif rel != f"{env_id}/{MANIFEST_FILE}":
+            check_sha256(Path(run_dir), Path(run_dir) / rel, sums)
+    return _write_config(Path(run_dir), env_id, config, saved, absent)
+
+
+if __name__ == "__main__":
+    import sys
+
+    for arg in sys.argv[1:]:
+        print(f"sealed {reseal(Path(arg))}")

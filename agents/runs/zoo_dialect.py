@@ -131,16 +131,23 @@ class _ZooLoader(yaml.SafeLoader):
 
 
 def _ordered_dict(loader: yaml.SafeLoader, node: yaml.Node) -> dict[Any, Any]:
-    if not isinstance(node, yaml.SequenceNode):
-        raise yaml.constructor.ConstructorError(None, None, "an OrderedDict must be a sequence",
-                                                node.start_mark)
-    (pairs,) = loader.construct_sequence(node, deep=True)  # [[[k, v], ...]]
-    out = {}
-    for pair in pairs:
-        if not (isinstance(pair, list) and len(pair) == 2):
-            raise yaml.constructor.ConstructorError(None, None, "bad OrderedDict item",
-                                                    node.start_mark)
-        out[pair[0]] = pair[1]
+    def bad(what: str) -> yaml.constructor.ConstructorError:
+        return yaml.constructor.ConstructorError(None, None, f"OrderedDict: {what}",
+                                                 node.start_mark)
+
+    # the zoo's form: a sequence holding one sequence of [key, value] pairs
+    if not (isinstance(node, yaml.SequenceNode) and len(node.value) == 1
+            and isinstance(node.value[0], yaml.SequenceNode)):
+        raise bad("expected a sequence holding one list of [key, value] pairs")
+    out: dict[Any, Any] = {}
+    for pair in node.value[0].value:
+        if not (isinstance(pair, yaml.SequenceNode) and len(pair.value) == 2
+                and isinstance(pair.value[0], yaml.ScalarNode)):
+            raise bad("every item must be a [key, value] pair with a plain key")
+        key = loader.construct_object(pair.value[0], deep=True)
+        if not isinstance(key, (str, int, float, bool)) or key in out:
+            raise bad(f"bad or repeated key {str(key)[:80]!r}")
+        out[key] = loader.construct_object(pair.value[1], deep=True)
     return out
 
 
@@ -148,9 +155,21 @@ _ZooLoader.add_constructor("tag:yaml.org,2002:python/object/apply:collections.Or
                            _ordered_dict)
 
 
-def zoo_yaml_load(text: str) -> Any:
-    """Parse YAML written by the zoo (``OrderedDict`` tags allowed, no other Python tag)."""
-    return yaml.load(text, Loader=_ZooLoader)  # noqa: S506 - a SafeLoader subclass
+def zoo_yaml_load(text: str, source: str = "YAML") -> Any:
+    """Parse YAML written by the zoo (``OrderedDict`` tags allowed, no other Python tag), with
+    the bounds of :func:`softhand_env.physics.safe_yaml.load_bounded` (size, no aliases,
+    depth, integer length); ``ValueError`` (one line naming ``source``) otherwise."""
+    from softhand_env.physics.safe_yaml import load_bounded
+
+    return load_bounded(text, _ZooLoader, source)
+
+
+class _NoAliasDumper(yaml.Dumper):
+    """``yaml.Dumper`` that writes a repeated object again instead of an anchor and alias
+    (the loader refuses aliases)."""
+
+    def ignore_aliases(self, data: Any) -> bool:
+        return True
 
 
 def zoo_yaml_dump(mapping: dict[str, Any], path: Path) -> None:
@@ -158,4 +177,4 @@ def zoo_yaml_dump(mapping: dict[str, Any], path: Path) -> None:
     from collections import OrderedDict
 
     ordered = OrderedDict((k, mapping[k]) for k in sorted(mapping))
-    path.write_text(yaml.dump(ordered))
+    path.write_text(yaml.dump(ordered, Dumper=_NoAliasDumper))

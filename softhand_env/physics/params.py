@@ -338,10 +338,9 @@ def load_hand_params(name_or_path: str | Path = "paper_ch5", **overrides: Any) -
     if not path.is_file():
         builtin = sorted(p.stem for p in (CONFIG_DIR / "hand").glob("*.yaml"))
         raise ValueError(f"hand config {str(name_or_path)!r} not found (built-in: {builtin})")
-    try:
-        with path.open() as fh:
-            data = yaml.safe_load(fh) or {}
-    except (yaml.YAMLError, UnicodeDecodeError) as exc:
-        raise ValueError(f"{path}: not a valid YAML file ({exc})") from None
+    from softhand_env.physics.safe_yaml import load_bounded, read_bounded
+
+    # bounded: size, no aliases (a 3 KB alias bomb), depth, integer length
+    data = load_bounded(read_bounded(path), yaml.SafeLoader, str(path)) or {}
     params = hand_params_from_dict(data, source=str(path))
     return params.replace(**overrides) if overrides else params

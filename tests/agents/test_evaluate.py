@@ -142,7 +142,11 @@ def _shipped_copy(tmp_path, env_id="SoftHandTranslate-v0"):
 
 
 def _write_config(run, config, env_id="SoftHandTranslate-v0"):
+    """Write ``config`` as the run's config.yml and re-seal the run (as a run written so)."""
+    from agents.runs.writing import reseal
+
     zoo_yaml_dump(config, run / env_id / "config.yml")
+    reseal(run)
 
 
 def test_shipped_models_carry_the_signature_of_their_env():

@@ -105,7 +105,7 @@ def test_vecnormalize_episode_statistics_and_attributes():
         venv.set_attr("dt", 0.01, indices=[0])
     with pytest.raises(ValueError, match="only env_wrappers with a vector equivalent"):
         make_sb3_vec_env(ENV_ID, 2, 0, {}, "native",
-                         env_wrapper=["gymnasium.wrappers.TimeAwareObservation"])
+                         env_wrapper=["gymnasium.wrappers.FrameStackObservation"])
     with pytest.raises(ValueError, match="vec_env must be one of"):
         make_sb3_vec_env(ENV_ID, 2, 0, {}, "ray")
     norm.close()
@@ -155,6 +155,8 @@ def test_train_and_evaluate_an_asymmetric_agent_on_privileged_observations(tmp_p
         "--hyperparams", "vec_env:native", "n_envs:4", "n_steps:64", "batch_size:128",
         "n_epochs:1", "policy:AsymmetricPolicy",
     ])
+    # trained on 30-step episodes: evaluated on them on purpose (not the benchmark's 250)
     summary = evaluate.main(["--model", str(run), "--n-episodes", "2", "--no-plots",
-                             "--out", str(tmp_path / "eval")])
+                             "--out", str(tmp_path / "eval"), "--task-kwargs",
+                             "max_episode_steps:30"])
     assert 0.0 <= summary["success_rate"] <= 1.0

@@ -56,7 +56,8 @@ def test_training_cli_smoke_run_writes_model_stats_config_and_tensorboard(tmp_pa
     # the sha256 of every model file of the run
     assert set(config["sha256"]) == {
         f"{env_id}.zip", f"{env_id}/vecnormalize.npz", f"{env_id}/vecnormalize.pkl",
-        f"{env_id}/args.yml", "best_model.zip", "best_model_vecnormalize.npz",
+        f"{env_id}/args.yml", f"{env_id}/manifest.yml", "best_model.zip",
+        "best_model_vecnormalize.npz",
         "best_model_vecnormalize.pkl", *(f"rl_model_{n}_steps.zip" for n in (128, 256)),
         *(f"rl_model_vecnormalize_{n}_steps.{e}" for n in (128, 256) for e in ("npz", "pkl"))}
     args = zoo_yaml_load((run / env_id / "args.yml").read_text())
