@@ -288,6 +288,8 @@ class SoftHandEnv(gym.Env):
         rand_friction: float | None = None,
         obs_noise: float | None = None,
         setpoint_latency: int = 0,
+        sensor_model: str = "ideal",
+        rand_sensors: bool = False,
         goal_x_range_mm: float | None = None,
         goal_theta_range_deg: float | None = None,
         x_tolerance_mm: float | None = None,
