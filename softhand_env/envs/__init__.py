@@ -125,8 +125,18 @@ def registered_kwargs(env_id: str) -> dict[str, Any]:
 
 
 def register_envs() -> None:
-    """Register every id of :data:`ENV_IDS` with Gymnasium (idempotent)."""
+    """Register every id of :data:`ENV_IDS` with Gymnasium (idempotent).
+
+    Gymnasium warns on ``gym.make`` of an id whose newer version is registered; the ``-v0``
+    ids are kept on purpose (original semantics, the shipped models), so that warning is
+    filtered for them (a ``DeprecationWarning`` filter on its message).
+    """
+    import warnings
+
     import gymnasium as gym
+
+    warnings.filterwarnings("ignore", message=r".*The environment SoftHand\w*-v0 is out of date",
+                            category=DeprecationWarning)
 
     from softhand_env.envs.task_configs import load_task_config
 
