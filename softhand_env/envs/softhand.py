@@ -159,11 +159,13 @@ class SoftHandEnv(gym.Env):
     Young's modulus, damping, PID gains; ``randomize=True`` applies a preset), the grasp
     noise, the goal (uniform within ``goal_x_range_mm`` / ``goal_theta_range_deg``), the
     friction coefficient (``rand_friction``), the set-point latency (only with
-    ``setpoint_latency`` > 0) and the observation noise; a randomised draw whose grasp phase
-    fails is redrawn (up to 10 times). Randomisation ranges whose extremes would make RK4
-    unstable at the hand's substep (e.g. ``rand_gains`` above 0.137 with the other presets at
-    0.1 ms) raise ``ValueError`` at construction, naming the keyword and the limit; a hand that
-    is itself beyond the limit (``hand_overrides``) gets a ``RuntimeWarning``.
+    ``setpoint_latency`` > 0), the sensor calibration (``sensor_model="realistic"``: torque
+    offsets, then gains with ``rand_sensors=True``), the sensor noise of the first reading
+    and the observation noise; a randomised draw whose grasp phase fails is redrawn (up to
+    10 times). Randomisation ranges whose extremes would make RK4 unstable at the hand's
+    substep (e.g. ``rand_gains`` above 0.137 with the other presets at 0.1 ms) raise
+    ``ValueError`` at construction, naming the keyword and the limit; a hand that is itself
+    beyond the limit (``hand_overrides``) gets a ``RuntimeWarning``.
     ``reset`` raises :class:`~softhand_env.physics.PhysicsError` if the grasp phase itself ends
     in one of the failures of Episode End (e.g. ``grasp_setpoint_deg=(12, 12)`` over-compresses
     the fingertips; every draw failing with randomisation): that configuration cannot start
@@ -379,7 +381,8 @@ class SoftHandEnv(gym.Env):
 
     # ---------------------------------------------------------------------------- helpers
     def observation_from_state(self, state: np.ndarray, setpoint: np.ndarray) -> np.ndarray:
-        """The newest observation frame (float32, no noise) for a physics state.
+        """The newest observation frame (float32) of the exact read-outs (no sensor model, no
+        noise) for a physics state.
 
         Parameters
         ----------
