@@ -216,7 +216,7 @@ class EpisodeBatch:
     def _frames(
         self,
         out: np.ndarray | None = None,
-        rows: Any = None,
+        rows: Any = (),
         rngs: Sequence[np.random.Generator | None] = (),
         first: bool = False,
     ) -> np.ndarray:
