@@ -10,7 +10,13 @@ id                          task         goal
 ``SoftHandTranslate-v0``    ``translate`` object position x_obj to a sampled target
 ``SoftHandPose-v0``         ``pose``     x_obj and theta_obj together
 ``SoftHand*Random-v0``      as above     Reorient, Translate, Pose with :data:`RANDOM_KWARGS`
+``SoftHand*-v1``            as above     each of the seven with :data:`V1_KWARGS` (the
+                                         ``Random`` ones also :data:`V1_RANDOM_KWARGS`)
 ==========================  ===========  ==================================================
+
+The ``-v0`` ids keep their original semantics (ideal sensing); ``-v1`` is the benchmark's
+current version (see the Version History of :class:`SoftHandEnv`); :func:`registered_kwargs`
+gives the keywords of any id.
 
 all with the entry point :class:`SoftHandEnv` (the task is a keyword), ``max_episode_steps``
 from ``configs/tasks/<task>.yaml``, ``reward_threshold`` (:func:`reward_threshold`) and the
@@ -31,8 +37,8 @@ from __future__ import annotations
 
 from typing import Any
 
-#: Registered id -> task name.
-ENV_IDS: dict[str, str] = {
+#: The original ids -> task name.
+V0_IDS: dict[str, str] = {
     "SoftHand-v0": "none",
     "SoftHandReorient-v0": "reorient",
     "SoftHandTranslate-v0": "translate",
@@ -42,8 +48,14 @@ ENV_IDS: dict[str, str] = {
     "SoftHandPoseRandom-v0": "pose",
 }
 
-#: The ids of the randomisation ladder's top rung (:data:`RANDOM_KWARGS`).
-RANDOM_IDS = tuple(i for i in ENV_IDS if i.endswith("Random-v0"))
+#: The ``-v1`` ids -> task name, one per ``-v0`` id.
+V1_IDS: dict[str, str] = {i.removesuffix("-v0") + "-v1": t for i, t in V0_IDS.items()}
+
+#: Registered id -> task name (every version, the ``-v0`` ids first).
+ENV_IDS: dict[str, str] = {**V0_IDS, **V1_IDS}
+
+#: The ids of the randomisation ladder's top rung (:data:`RANDOM_KWARGS`), every version.
+RANDOM_IDS = tuple(i for i in ENV_IDS if i[:-3].endswith("Random"))
 
 #: Keywords of the ``Random`` ids (the randomisation ladder's top rung), on top of the task:
 #: relative half-widths of the hand parameters (friction included), observation noise, a
@@ -64,6 +76,19 @@ RANDOM_KWARGS: dict[str, Any] = {
     "hand_overrides": {"dt": 5e-5},
 }
 
+#: Keywords of every ``-v1`` id, on top of the ``-v0`` id's: the one place that says what v1
+#: changes (each stays overridable in ``gym.make``): the realistic sensor model
+#: (:mod:`softhand_env.envs.sensors`).
+V1_KWARGS: dict[str, Any] = {
+    "sensor_model": "realistic",
+}
+
+#: Keywords of the ``Random`` ``-v1`` ids on top of :data:`RANDOM_KWARGS` and
+#: :data:`V1_KWARGS`: the torque sensors' gains drawn per episode.
+V1_RANDOM_KWARGS: dict[str, Any] = {
+    "rand_sensors": True,
+}
+
 ENTRY_POINT = "softhand_env.envs.dict_obs:make_env"
 VECTOR_ENTRY_POINT = "softhand_env.envs.dict_obs:make_vector_env"
 
@@ -82,9 +107,36 @@ def reward_threshold(task_config: dict[str, Any]) -> float | None:
     return float(task_config["max_episode_steps"]) * float(task_config["goal_weight"])
 
 
+def registered_kwargs(env_id: str) -> dict[str, Any]:
+    """The keywords registered for ``env_id`` (a key of :data:`ENV_IDS`): the task, then
+    :data:`RANDOM_KWARGS` (``Random`` ids), :data:`V1_KWARGS` and :data:`V1_RANDOM_KWARGS`
+    (``Random`` ``-v1`` ids)."""
+    if env_id not in ENV_IDS:
+        raise ValueError(f"unknown soft-hand id {env_id!r}; ids: {', '.join(ENV_IDS)}")
+    kwargs: dict[str, Any] = {"task": ENV_IDS[env_id]}
+    random = env_id in RANDOM_IDS
+    if random:
+        kwargs.update(RANDOM_KWARGS)
+    if env_id in V1_IDS:
+        kwargs.update(V1_KWARGS)
+        if random:
+            kwargs.update(V1_RANDOM_KWARGS)
+    return kwargs
+
+
 def register_envs() -> None:
-    """Register every id of :data:`ENV_IDS` with Gymnasium (idempotent)."""
+    """Register every id of :data:`ENV_IDS` with Gymnasium (idempotent).
+
+    Gymnasium warns on ``gym.make`` of an id whose newer version is registered; the ``-v0``
+    ids are kept on purpose (original semantics, the shipped models), so that warning is
+    filtered for them (a ``DeprecationWarning`` filter on its message).
+    """
+    import warnings
+
     import gymnasium as gym
+
+    warnings.filterwarnings("ignore", message=r".*The environment SoftHand\w*-v0 is out of date",
+                            category=DeprecationWarning)
 
     from softhand_env.envs.task_configs import load_task_config
 
@@ -98,7 +150,7 @@ def register_envs() -> None:
             vector_entry_point=VECTOR_ENTRY_POINT,
             max_episode_steps=int(config["max_episode_steps"]),
             reward_threshold=reward_threshold(config),
-            kwargs={"task": task, **(RANDOM_KWARGS if env_id in RANDOM_IDS else {})},
+            kwargs=registered_kwargs(env_id),
         )
 
 
@@ -118,8 +170,13 @@ __all__ = [
     "ENV_IDS",
     "RANDOM_IDS",
     "RANDOM_KWARGS",
+    "V0_IDS",
+    "V1_IDS",
+    "V1_KWARGS",
+    "V1_RANDOM_KWARGS",
     "SoftHandEnv",
     "SoftHandVectorEnv",
     "register_envs",
+    "registered_kwargs",
     "reward_threshold",
 ]

@@ -19,6 +19,7 @@ from softhand_env.envs.actions import ActionMap
 from softhand_env.envs.observation import ObservationLayout
 from softhand_env.envs.options import KEYWORDS, EnvOptions, check_options
 from softhand_env.envs.randomization import PRESET, Randomization
+from softhand_env.envs.sensors import SensorSpec, load_sensor_spec
 from softhand_env.envs.tasks import TASK_KWARGS, Task, make_task
 from softhand_env.physics.params import HandParams, load_hand_params
 from softhand_env.physics.stability import warn_if_unstable
@@ -68,6 +69,10 @@ class EnvConfig:
     terminate_on_slip : bool
         A control step whose contact needs more friction than ``mu`` (``slip``) or pulls
         (``tension``) ends the episode (False: only reported in ``info``).
+    sensors : SensorSpec
+        The sensor model (``sensor_model``; :mod:`softhand_env.envs.sensors`).
+    rand_sensors : bool
+        Each episode draws its torque-sensor gains.
     render_mode : str or None
     render_size : (int, int)
         Frame (width, height) in pixels.
@@ -88,6 +93,8 @@ class EnvConfig:
     ch_limit: float
     base_limit: float
     terminate_on_slip: bool
+    sensors: SensorSpec
+    rand_sensors: bool
     render_mode: str | None
     render_size: tuple[int, int]
 
@@ -149,6 +156,10 @@ def build_config(options: EnvOptions) -> EnvConfig:
     randomization = Randomization.resolve(bool(o.randomize), **rand_kw)
     randomization.check_ranges(params)
     warn_if_unstable(params, stacklevel=3)
+    sensors = load_sensor_spec(o.sensor_model)
+    if o.rand_sensors and sensors.ideal:
+        raise ValueError("rand_sensors=True draws the gains of a sensor model: it needs "
+                         "sensor_model='realistic' (got sensor_model='ideal')")
     return EnvConfig(
         task=task_obj,
         params=params,
@@ -168,6 +179,8 @@ def build_config(options: EnvOptions) -> EnvConfig:
         ch_limit=float(o.ch_limit),
         base_limit=1.0 + float(o.base_tolerance),
         terminate_on_slip=bool(o.terminate_on_slip),
+        sensors=sensors,
+        rand_sensors=bool(o.rand_sensors),
         render_mode=o.render_mode,
         render_size=(int(o.render_width), int(o.render_height)),
     )

@@ -245,6 +245,12 @@ class EnvOptions:
                                   high=10.0, high_open=True)
     setpoint_latency: int = _kw(0, "largest set-point latency, each episode draws 0..this",
                                 "int", "steps", low=0, high=10)
+    sensor_model: str = _kw("ideal", "joint and fingertip sensing: ``'ideal'`` (exact "
+                            "read-outs) or ``'realistic'`` (``configs/sensors/realistic.yaml``"
+                            "; see ``softhand_env.envs.sensors``)", "choice",
+                            choices=("ideal", "realistic"))
+    rand_sensors: bool = _kw(False, "draw each episode's torque-sensor gain within the sensor "
+                             "model's ``torque_gain_tolerance`` (not with ``'ideal'``)", "flag")
     goal_x_range_mm: float | None = _kw(None, "x* ~ U(-r, r) " + _TASK, "number", "mm",
                                         low=0.0, high=100.0, low_open=True)
     goal_theta_range_deg: float | None = _kw(None, "theta* ~ U(-r, r) " + _TASK, "number",

@@ -28,10 +28,18 @@ field                  meaning
 ``max_delta_deg``      set-point change of a full delta action (deg)
 ``joint_range_deg``    set-point range ``[low, high]`` (deg)
 ``control_dt``         control period (s)
+``sensor_model``       ``ideal`` or ``realistic`` (:mod:`softhand_env.envs.sensors`): a
+                       model trained on exact read-outs is refused on quantised, noisy ones
+                       and the other way round; a signature saved before the field existed
+                       reads ``ideal`` (:data:`LEGACY_VALUES`)
 =====================  ====================================================================
 
+The ``-v0`` and ``-v1`` ids are distinct ids (``env_id``), so a model trained on a ``-v0`` id
+is refused on its ``-v1`` id (and on ``-v0`` with ``sensor_model="realistic"``).
+
 Hand parameters are *not* part of the signature: evaluating a policy on another hand (or
-under randomisation) is a legitimate experiment, not a mismatch. Neither are the keywords that
+under randomisation, the sensors' per-episode calibration ``rand_sensors`` included) is a
+legitimate experiment, not a mismatch. Neither are the keywords that
 only decide when an episode ends or how it is rewarded (``terminate_on_success``,
 ``terminate_on_slip``, the reward weights): they change no input or output of the model, so a
 model trained before slip termination existed still loads, and evaluating it with slip
@@ -70,7 +78,12 @@ SIGNATURE_FIELDS = (
     "max_delta_deg",
     "joint_range_deg",
     "control_dt",
+    "sensor_model",
 )
+
+#: Values of fields added after signatures were first saved, as a signature without the field
+#: means them (the model was trained when only that value existed).
+LEGACY_VALUES: dict[str, Any] = {"sensor_model": "ideal"}
 
 #: Relative tolerance for float fields (they round-trip through degrees/radians and JSON).
 FLOAT_RTOL = 1e-9
@@ -101,19 +114,21 @@ def _config_and_id(env: Any) -> tuple[Any, str | None]:
 
 
 def _registered_id(env: Any, task: str) -> str:
-    """Id of an environment constructed without ``gym.make``: the ``Random`` id of its task if
-    it has the keywords of :data:`softhand_env.envs.RANDOM_KWARGS`, else the task's id."""
-    from softhand_env.envs import ENV_IDS, RANDOM_KWARGS
+    """Id of an environment constructed without ``gym.make``: among the ids of its task whose
+    registered keywords (:func:`softhand_env.envs.registered_kwargs`) it all has, the one
+    with the most keywords (e.g. the ``Random`` ``-v1`` id for
+    :data:`~softhand_env.envs.RANDOM_KWARGS`, :data:`~softhand_env.envs.V1_KWARGS` and
+    :data:`~softhand_env.envs.V1_RANDOM_KWARGS`); the task's ``-v0`` id if none fits."""
+    from softhand_env.envs import ENV_IDS, registered_kwargs
 
     base = getattr(env, "unwrapped", env)
     options = getattr(base, "options", None)
     if options is None and hasattr(env, "get_attr"):
         options = env.get_attr("options")[0]
-    randomised = options is not None and all(
-        getattr(options, k) == v for k, v in RANDOM_KWARGS.items()
-    )
-    ids = [i for i, t in ENV_IDS.items() if t == task and i.endswith("Random-v0") == randomised]
-    return ids[0] if ids else next(i for i, t in ENV_IDS.items() if t == task)
+    ids = [i for i, t in ENV_IDS.items() if t == task]
+    fitting = [i for i in ids if options is not None and all(
+        getattr(options, k) == v for k, v in registered_kwargs(i).items())]
+    return max(fitting, key=lambda i: len(registered_kwargs(i))) if fitting else ids[0]
 
 
 def env_signature(env: Any) -> dict[str, Any]:
@@ -143,6 +158,7 @@ def env_signature(env: Any) -> dict[str, Any]:
         "max_delta_deg": math.degrees(actions.max_delta),
         "joint_range_deg": [math.degrees(actions.low), math.degrees(actions.high)],
         "control_dt": cfg.dt,
+        "sensor_model": cfg.sensors.name,
     }
 
 
@@ -258,6 +274,7 @@ def check_model_compatibility(
                 stacklevel=2,
             )
     if saved is not None:
+        saved = {**LEGACY_VALUES, **saved}
         problems += _differences(saved, current, set(ignore))
     if problems:
         raise ValueError(
@@ -268,6 +285,7 @@ def check_model_compatibility(
 
 
 __all__ = [
+    "LEGACY_VALUES",
     "SIGNATURE_FIELDS",
     "check_model_compatibility",
     "env_signature",

@@ -11,6 +11,7 @@ from softhand_env.envs.actions import action_array
 from softhand_env.envs.config import RENDER_MODES, build_config
 from softhand_env.envs.observation import observe_rows
 from softhand_env.envs.options import KEYWORDS, EnvOptions, arguments_table
+from softhand_env.envs.sensors import SensorSpec
 from softhand_env.envs.transition import EpisodeBatch, reset_goal
 from softhand_env.physics.hand import HandPhysics
 
@@ -54,6 +55,14 @@ class SoftHandEnv(gym.Env):
     | `SoftHandReorientRandom-v0` | `reorient` | as Reorient, randomised | 250 (5 s)         |
     | `SoftHandTranslateRandom-v0` | `translate` | as Translate, randomised | 250 (5 s)        |
     | `SoftHandPoseRandom-v0` | `pose`      | as Pose, randomised         | 400 (8 s)         |
+
+    Each id also exists as ``-v1`` (``SoftHandPose-v1``, ...): the same task with the
+    keywords of :data:`softhand_env.envs.V1_KWARGS` (realistic sensors,
+    ``sensor_model="realistic"``) and, for the ``Random`` ids, of
+    :data:`softhand_env.envs.V1_RANDOM_KWARGS` (each episode draws its torque-sensor gains,
+    ``rand_sensors=True``). The ``-v0`` ids keep their original semantics (exact read-outs;
+    the shipped models were trained on them); see Version History.
+    :func:`softhand_env.envs.registered_kwargs` gives the keywords of any id.
 
     The ``Random`` ids are the top rung of the randomisation ladder (keywords in
     :data:`softhand_env.envs.RANDOM_KWARGS`, each overridable): object width +-10 %, mass and
@@ -107,8 +116,21 @@ class SoftHandEnv(gym.Env):
 
     Entries 8-11 exist only with ``obs_mode="proprio_tactile"`` (frame size 12, else 8). The
     frame is a function of the finger part of the state, the set-points and the PID gains
-    only (:func:`softhand_env.envs.observation.observe_rows`). ``obs_noise`` adds Gaussian noise
-    of that standard deviation (scaled units) to each frame.
+    only (:func:`softhand_env.envs.observation.observe_rows`), read through the sensor model
+    ``sensor_model`` (:mod:`softhand_env.envs.sensors`, values in
+    ``configs/sensors/realistic.yaml``, rationale in ``docs/sensors.md``): ``"ideal"`` (the
+    ``-v0`` default) observes the exact read-outs; ``"realistic"`` (the ``-v1`` default)
+    observes 12-bit encoder angles (0.088 deg counts, 0.03 deg noise), the velocity as the
+    difference of two encoder readings over the control period, motor-current torques
+    (0.2 N m noise, a per-episode offset of std 0.1 N m, with ``rand_sensors=True`` a
+    per-episode gain within +-10 %) and, with tactile entries, deformations with 0.05 mm
+    noise. The set-point entries are exact. The scaling stays the same, so entries stay
+    O(1). ``obs_noise`` adds Gaussian noise of that standard deviation (scaled units) to each
+    frame, after the sensor model (0 unless set or ``randomize=True``; 0.01 on the ``Random``
+    ids of both versions). ``info`` keeps the true values, ``env.unwrapped.physics`` the
+    true joint read-outs; ``env.unwrapped.sensors`` is the sensor model
+    (:class:`~softhand_env.envs.sensors.SensorSpec`) and ``env.unwrapped.sensor_calibration``
+    the episode's torque offsets and gains.
 
     ## Rewards
 
@@ -137,11 +159,13 @@ class SoftHandEnv(gym.Env):
     Young's modulus, damping, PID gains; ``randomize=True`` applies a preset), the grasp
     noise, the goal (uniform within ``goal_x_range_mm`` / ``goal_theta_range_deg``), the
     friction coefficient (``rand_friction``), the set-point latency (only with
-    ``setpoint_latency`` > 0) and the observation noise; a randomised draw whose grasp phase
-    fails is redrawn (up to 10 times). Randomisation ranges whose extremes would make RK4
-    unstable at the hand's substep (e.g. ``rand_gains`` above 0.137 with the other presets at
-    0.1 ms) raise ``ValueError`` at construction, naming the keyword and the limit; a hand that
-    is itself beyond the limit (``hand_overrides``) gets a ``RuntimeWarning``.
+    ``setpoint_latency`` > 0), the sensor calibration (``sensor_model="realistic"``: torque
+    offsets, then gains with ``rand_sensors=True``), the sensor noise of the first reading
+    and the observation noise; a randomised draw whose grasp phase fails is redrawn (up to
+    10 times). Randomisation ranges whose extremes would make RK4 unstable at the hand's
+    substep (e.g. ``rand_gains`` above 0.137 with the other presets at 0.1 ms) raise
+    ``ValueError`` at construction, naming the keyword and the limit; a hand that is itself
+    beyond the limit (``hand_overrides``) gets a ``RuntimeWarning``.
     ``reset`` raises :class:`~softhand_env.physics.PhysicsError` if the grasp phase itself ends
     in one of the failures of Episode End (e.g. ``grasp_setpoint_deg=(12, 12)`` over-compresses
     the fingertips; every draw failing with randomisation): that configuration cannot start
@@ -255,6 +279,14 @@ class SoftHandEnv(gym.Env):
     - v0, validity update: ``info["contact_validated"]`` per fingertip.
     - v0, ladder update: ``setpoint_latency`` keyword and the ``Random`` ids (randomisation
       ladder).
+    - v1: every id registered again as ``-v1`` with :data:`softhand_env.envs.V1_KWARGS`; the
+      ``-v0`` ids keep the semantics above (``sensor_model="ideal"``). Realistic sensing
+      (``sensor_model="realistic"``: quantised, noisy encoders and encoder-differenced
+      velocities, motor-current torques with noise and a per-episode offset, noisy tactile
+      entries; ``rand_sensors=True`` on the ``Random`` ids), drawn from ``np_random`` after
+      the other per-episode draws, so seeded episodes keep their parameters, grasp noise,
+      goal and latency. ``sensor_model`` is part of the env signature: a model trained on
+      ``-v0`` is refused on ``-v1``.
     """
 
     metadata = {"render_modes": list(RENDER_MODES), "render_fps": 50}
@@ -288,6 +320,8 @@ class SoftHandEnv(gym.Env):
         rand_friction: float | None = None,
         obs_noise: float | None = None,
         setpoint_latency: int = 0,
+        sensor_model: str = "ideal",
+        rand_sensors: bool = False,
         goal_x_range_mm: float | None = None,
         goal_theta_range_deg: float | None = None,
         x_tolerance_mm: float | None = None,
@@ -347,7 +381,8 @@ class SoftHandEnv(gym.Env):
 
     # ---------------------------------------------------------------------------- helpers
     def observation_from_state(self, state: np.ndarray, setpoint: np.ndarray) -> np.ndarray:
-        """The newest observation frame (float32, no noise) for a physics state.
+        """The newest observation frame (float32) of the exact read-outs (no sensor model, no
+        noise) for a physics state.
 
         Parameters
         ----------
@@ -362,6 +397,21 @@ class SoftHandEnv(gym.Env):
         observe_rows(hand.finger_angles, hand.finger_velocities, hand.setpoint,
                      hand.joint_torques, hand.deformation, self.config.layout.tactile, out)
         return out[0]
+
+    @property
+    def sensors(self) -> SensorSpec:
+        """The sensor model (``sensor_model``; all zeros for ``"ideal"``)."""
+        return self.config.sensors
+
+    @property
+    def sensor_calibration(self) -> dict[str, np.ndarray]:
+        """This episode's torque-sensor calibration: ``torque_bias_nm`` (2,) (N m) and
+        ``torque_gain`` (2,) (0 and 1 with ``"ideal"``)."""
+        sensing = self._batch.sensing
+        if sensing is None:
+            return {"torque_bias_nm": np.zeros(2), "torque_gain": np.ones(2)}
+        return {"torque_bias_nm": sensing.torque_bias[0].copy(),
+                "torque_gain": sensing.torque_gain[0].copy()}
 
     @property
     def goal(self) -> np.ndarray:

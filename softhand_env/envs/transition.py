@@ -22,6 +22,7 @@ import numpy as np
 
 from softhand_env.envs.config import EnvConfig
 from softhand_env.envs.observation import add_frame_noise, observe_rows
+from softhand_env.envs.sensors import SensorState
 from softhand_env.envs.start import start_episode
 from softhand_env.physics import friction, validity
 from softhand_env.physics.hand import HandPhysics
@@ -90,6 +91,10 @@ class EpisodeBatch:
         Termination reason of the last step (a failure name or ``"success"``), else None.
     latency : ndarray of int64, shape (N,)
         Set-point latency of each episode in control steps (``setpoint_latency``; 0 without).
+    sensing : SensorState or None
+        The sensors of a non-ideal ``sensor_model`` (per-episode calibration, last encoder
+        readings; :mod:`softhand_env.envs.sensors`); None with ``"ideal"``, whose
+        observation reads the physics' read-outs.
 
     Set-point latency (``cfg.setpoint_latency`` = K > 0): the set-points commanded at step t
     are applied from step t + L on (L the episode's latency), the ones commanded before stay
@@ -133,6 +138,10 @@ class EpisodeBatch:
         self._goal_cols: tuple[Any, ...] = ()
         self._refresh_goal_columns()
         self._r = self.physics.readouts()
+        self.sensing: SensorState | None = None
+        if not cfg.sensors.ideal:
+            self.sensing = SensorState(cfg.sensors, n, cfg.dt, cfg.layout.tactile,
+                                       cfg.rand_sensors)
 
     def _refresh_goal_columns(self) -> None:
         """Goal coordinates as the task reads them: floats for one episode (the task's scalar
@@ -160,6 +169,8 @@ class EpisodeBatch:
         self.tension[i] = False
         self.reason[i] = None
         self._refresh_goal_columns()
+        if self.sensing is not None:  # after every draw of start_episode
+            self.sensing.start(i, _generator((rng,), 0))
 
     def finish_reset(
         self, mask: np.ndarray, rngs: Sequence[np.random.Generator | None]
@@ -178,7 +189,7 @@ class EpisodeBatch:
         self.success[mask] = np.broadcast_to(success, (self.num_envs,))[mask]
         layout = self.cfg.layout
         f, h = layout.frame_size, layout.history_size
-        frames = self._frames()
+        frames = self._frames(rows=np.flatnonzero(mask), rngs=rngs, first=True)
         goal_obs = self.task.goal_observation(self.goal)
         noise = self.cfg.randomization.obs_noise
         for i in np.flatnonzero(mask):
@@ -202,21 +213,29 @@ class EpisodeBatch:
             )
         return self.task.evaluate(tuple(pose.T), self._goal_cols, ctrl, failed, grasped)
 
-    def _frames(self, out: np.ndarray | None = None) -> np.ndarray:
+    def _frames(
+        self,
+        out: np.ndarray | None = None,
+        rows: Any = (),
+        rngs: Sequence[np.random.Generator | None] = (),
+        first: bool = False,
+    ) -> np.ndarray:
         """The newest observation frame of every environment, float32 (N, frame_size), written
-        into the first frame_size columns of ``out`` if given."""
+        into the first frame_size columns of ``out`` if given.
+
+        With a non-ideal sensor model the environments ``rows`` (array of int) are read
+        through it (drawing from ``rngs[i]``; ``first``: the first reading of an episode);
+        the other rows' frames are not used by the caller."""
         r = self._r
         if out is None:
             out = np.empty((self.num_envs, self.cfg.layout.frame_size), dtype=np.float32)
-        observe_rows(
-            r.finger_angles,
-            r.finger_velocities,
-            r.setpoint,
-            r.joint_torques,
-            r.deformation,
-            self.cfg.layout.tactile,
-            out,
-        )
+        angle, velocity, torque, deformation = (
+            r.finger_angles, r.finger_velocities, r.joint_torques, r.deformation)
+        if self.sensing is not None:
+            angle, velocity, torque, deformation = self.sensing.read(
+                angle, torque, deformation, rows, [_generator(rngs, i) for i in rows], first)
+        observe_rows(angle, velocity, r.setpoint, torque, deformation,
+                     self.cfg.layout.tactile, out)
         return out
 
     # ------------------------------------------------------------------------------- step
@@ -276,10 +295,10 @@ class EpisodeBatch:
         f, h = layout.frame_size, layout.history_size
         if h > f:
             self.obs[:, f:h] = self.obs[:, : h - f]
-        self._frames(self.obs)
+        rows = np.arange(n) if skip is None else np.flatnonzero(~skip)
+        self._frames(self.obs, rows=rows, rngs=rngs)
         noise = cfg.randomization.obs_noise
         if noise > 0:
-            rows = range(n) if skip is None else np.flatnonzero(~skip)
             for i in rows:
                 add_frame_noise(self.obs[i, :f], noise, _generator(rngs, i))
         return self.terms.sum(axis=0), terminated

@@ -160,6 +160,14 @@ def test_weights_are_read_without_unpickling(tmp_path, capsys):
     assert not marker.exists()
 
 
+def test_shipped_v0_model_is_refused_on_its_v1_id(capsys):
+    # the shipped models were trained on the v0 ids (ideal sensing); they load for v0
+    # (tests/test_agents_evaluate.py) and are refused on v1 in one line
+    # (the run's env signature refuses it too: sensor_model, tests/test_reliability_signature.py)
+    v1 = ENV.replace("-v0", "-v1")
+    _refused(capsys, SHIPPED[ENV].parent, f"trained on {ENV}, not {v1}", "--env", v1)
+
+
 def test_swapped_model_file_is_refused(tmp_path, capsys):
     run = _copy(tmp_path, "SoftHandReorient-v0")
     shutil.copy(SHIPPED[ENV], run / "SoftHandReorient-v0.zip")  # Translate weights, same shapes

@@ -18,7 +18,15 @@ import pytest
 import yaml
 
 import softhand_env
-from softhand_env.envs import ENV_IDS, RANDOM_KWARGS, SoftHandEnv
+from softhand_env.envs import (
+    ENV_IDS,
+    RANDOM_KWARGS,
+    V0_IDS,
+    V1_IDS,
+    V1_KWARGS,
+    V1_RANDOM_KWARGS,
+    SoftHandEnv,
+)
 from softhand_env.envs.tasks import GOAL_TERMS
 from softhand_env.physics.failure import REASONS
 from softhand_env.physics.model import DN_1, DN_2, TH_OBJ, X_OBJ, initial_state
@@ -44,7 +52,10 @@ def test_ids_registered_with_time_limit_and_vector_entry_point():
         spec = gym.spec(env_id)
         cfg = yaml.safe_load((ROOT / "configs" / "tasks" / f"{task}.yaml").read_text())
         assert spec.max_episode_steps == cfg["max_episode_steps"] > 0
-        extra = RANDOM_KWARGS if env_id.endswith("Random-v0") else {}
+        random = env_id[:-3].endswith("Random")
+        extra = RANDOM_KWARGS if random else {}
+        if env_id in V1_IDS:
+            extra = {**extra, **V1_KWARGS, **(V1_RANDOM_KWARGS if random else {})}
         assert spec.kwargs == {"task": task, **extra}
         assert spec.vector_entry_point is not None
         env = gym.make(env_id)
@@ -148,10 +159,21 @@ def test_env_options_record_every_keyword_with_its_default():
         EnvOptions(colour="red")
 
 
+def test_v1_ids_mirror_the_v0_ids():
+    assert list(V1_IDS) == [i.replace("-v0", "-v1") for i in V0_IDS]
+    assert set(ENV_IDS) == set(V0_IDS) | set(V1_IDS)
+    for v0, v1 in zip(V0_IDS, V1_IDS, strict=True):
+        assert V0_IDS[v0] == V1_IDS[v1]
+        assert gym.spec(v0).max_episode_steps == gym.spec(v1).max_episode_steps
+        assert gym.spec(v0).reward_threshold == gym.spec(v1).reward_threshold
+        assert gym.make(v0).unwrapped.options.sensor_model == "ideal"
+        assert gym.make(v1).unwrapped.options.sensor_model == "realistic"
+
+
 def test_manual_ids_table_matches_registry():
     rows = re.findall(r"^\s*\| `(\S+-v0)`\s*\| `(\w+)`\s*\|[^|]+\|\s*(\d+) \(",
                       SoftHandEnv.__doc__, flags=re.M)
-    assert {r[0] for r in rows} == set(ENV_IDS)
+    assert {r[0] for r in rows} == set(V0_IDS)
     for env_id, task, steps in rows:
         assert ENV_IDS[env_id] == task and gym.spec(env_id).max_episode_steps == int(steps)
 
@@ -240,8 +262,9 @@ def test_seed_controls_goal_and_goal_in_range():
     np.testing.assert_array_equal(info["goal"], goals[3])
 
 
-def test_pickle_round_trip_continues_identically():
-    env = gym.make("SoftHandTranslate-v0", obs_mode="proprio_tactile", obs_noise=0.01)
+@pytest.mark.parametrize("env_id", ["SoftHandTranslate-v0", "SoftHandTranslateRandom-v1"])
+def test_pickle_round_trip_continues_identically(env_id):
+    env = gym.make(env_id, obs_mode="proprio_tactile", obs_noise=0.01)
     env.reset(seed=2)
     for _ in range(5):
         env.step(env.action_space.sample())

@@ -73,8 +73,8 @@ def test_native_matches_independent_single_envs(mode):
 
 def test_make_vec_spaces_metadata_and_no_warnings():
     with warnings.catch_warnings():
-        warnings.simplefilter("error")
-        envs = gym.make_vec("SoftHandPose-v0", num_envs=3, vectorization_mode="vector_entry_point")
+        warnings.simplefilter("error")  # the current version (Gymnasium warns on make of -v0)
+        envs = gym.make_vec("SoftHandPose-v1", num_envs=3, vectorization_mode="vector_entry_point")
     assert envs.metadata["autoreset_mode"] == AutoresetMode.NEXT_STEP
     assert envs.num_envs == 3 and envs.unwrapped.max_episode_steps == 400
     assert envs.single_observation_space.shape == (10,)

@@ -82,6 +82,38 @@ def test_layout_mismatch_raises_naming_every_differing_field(train_kwargs, eval_
     assert named == fields
 
 
+@pytest.mark.parametrize("env_id", ["SoftHandPose-v1", "SoftHandPoseRandom-v1",
+                                    "SoftHandPoseRandom-v0", "SoftHandPose-v0"])
+def test_directly_constructed_env_signs_with_the_id_of_its_keywords(env_id):
+    from softhand_env.envs import SoftHandEnv, registered_kwargs
+
+    sig = env_signature(SoftHandEnv(**registered_kwargs(env_id)))
+    assert sig == env_signature(gym.make(env_id))
+    assert sig["env_id"] == env_id
+    assert sig["sensor_model"] == ("realistic" if env_id.endswith("-v1") else "ideal")
+
+
+def test_sensor_model_mismatch_is_refused_and_old_signatures_mean_ideal():
+    saved = env_signature(gym.make("SoftHandPose-v0"))
+    legacy = {k: v for k, v in saved.items() if k != "sensor_model"}  # saved before the field
+    for model in (saved, legacy):
+        check_model_compatibility(model, gym.make("SoftHandPose-v0"))
+        with pytest.raises(ValueError) as info:
+            check_model_compatibility(model, gym.make("SoftHandPose-v1"))
+        assert re.findall(r"(\w+) \(model", str(info.value)) == ["env_id", "sensor_model"]
+        assert "sensor_model (model 'ideal', env 'realistic')" in str(info.value)
+        with pytest.raises(ValueError, match="sensor_model .*'ideal', env 'realistic'"):
+            check_model_compatibility(model, gym.make("SoftHandPose-v0",
+                                                      sensor_model="realistic"))
+    with pytest.raises(ValueError, match="sensor_model .*'realistic', env 'ideal'"):
+        check_model_compatibility(env_signature(gym.make("SoftHandPose-v1")),
+                                  gym.make("SoftHandPose-v1", sensor_model="ideal"))
+    # the per-episode calibration draws are not part of it (like hand randomisation)
+    check_model_compatibility(env_signature(gym.make("SoftHandPose-v1")),
+                              gym.make("SoftHandPose-v1", rand_sensors=True),
+                              ignore=("env_id",))
+
+
 def test_other_task_and_version_are_refused_unless_ignored():
     saved = env_signature(gym.make("SoftHandTranslate-v0"))
     with pytest.raises(ValueError, match=r"env_id .*task \(model 'translate', env 'reorient'\)"):

@@ -1,0 +1,236 @@
+"""Sensor models: what the hand's joint encoders, current sensors and fingertips report.
+
+The keyword ``sensor_model`` chooses how the observation reads the hand:
+
+* ``"ideal"``: the exact read-outs of the simulation (joint angles and velocities, PID
+  torques, fingertip deformations), as the ``-v0`` ids have always observed them. Nothing is
+  drawn from the random generator.
+* ``"realistic"`` (the ``-v1`` ids): the values of ``configs/sensors/realistic.yaml`` (units in
+  the key names; rationale in ``docs/sensors.md``), applied by :class:`SensorState`:
+
+  - **joint angle**: a quantised encoder, theta_meas = q round((theta + n) / q), q the
+    resolution ``encoder_resolution_deg``, n ~ N(0, ``encoder_noise_deg``^2) per reading;
+  - **joint velocity**: the finite difference of two successive encoder readings over the
+    control period, (theta_meas(t) - theta_meas(t - dt)) / dt (0 at reset), so it is
+    quantised in steps of q / dt and carries the encoder noise (sqrt(2) n / dt);
+  - **joint torque** (motor current times the torque constant): tau_meas = g tau + b + m,
+    tau the PID torque, b a per-episode offset ~ N(0, ``torque_bias_nm``^2) per joint, m ~
+    N(0, ``torque_noise_nm``^2) per reading, g the torque-constant gain, 1 unless
+    ``rand_sensors=True``, which draws it per episode and joint from 1 + U(-t, t), t =
+    ``torque_gain_tolerance``;
+  - **fingertip deformation** (``obs_mode="proprio_tactile"``): d + N(0,
+    ``tactile_noise_mm``^2) on each of d_n1, d_n2, d_t1, d_t2.
+
+  The set-point entries are the commands the controller holds, known exactly.
+
+Every draw comes from the environment's ``np_random``, so a seeded episode is reproducible and
+environment i of the native vector env draws what a single environment with its seed draws.
+Per episode, after everything :func:`~softhand_env.envs.start.start_episode` draws: the two
+torque offsets, then (``rand_sensors=True``) the two gains. Per reading (each reset and each
+step): two encoder noises, two torque noises, then four tactile noises (tactile mode). The
+observation's ``obs_noise`` (scaled units) is added after the sensor model, drawn after it.
+The sensed values go through the observation's scaling (:mod:`.observation`), so the
+observation stays O(1); ``info`` keeps the true values (``deformation``, ``setpoint``,
+``object_pose``), and ``env.unwrapped.physics`` the true joint read-outs.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import asdict, dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from softhand_env.envs.options import KEYWORDS
+
+SENSOR_CONFIG_DIR = Path(__file__).resolve().parent.parent / "configs" / "sensors"
+
+#: Sensor-model names (the ``sensor_model`` keyword's choices).
+SENSOR_MODELS = KEYWORDS["sensor_model"].choices
+
+#: YAML key -> allowed range (low, high); the low end is open for the encoder resolution.
+RANGES: dict[str, tuple[float, float]] = {
+    "encoder_resolution_deg": (0.0, 10.0),
+    "encoder_noise_deg": (0.0, 10.0),
+    "torque_noise_nm": (0.0, 100.0),
+    "torque_bias_nm": (0.0, 100.0),
+    "torque_gain_tolerance": (0.0, 0.5),
+    "tactile_noise_mm": (0.0, 10.0),
+}
+
+
+@dataclass(frozen=True)
+class SensorSpec:
+    """One sensor model's values (units in the names; all 0 for ``"ideal"``).
+
+    Attributes
+    ----------
+    name : str
+        ``"ideal"`` or the YAML's name.
+    encoder_resolution_deg : float
+        Encoder count (deg).
+    encoder_noise_deg : float
+        rms noise of an encoder reading before quantisation (deg).
+    torque_noise_nm : float
+        rms noise of a torque reading (N m).
+    torque_bias_nm : float
+        Standard deviation of the per-episode torque offset (N m).
+    torque_gain_tolerance : float
+        Relative half-width of the per-episode torque gain (with ``rand_sensors=True``).
+    tactile_noise_mm : float
+        rms noise of a fingertip deformation reading (mm).
+    """
+
+    name: str = "ideal"
+    encoder_resolution_deg: float = 0.0
+    encoder_noise_deg: float = 0.0
+    torque_noise_nm: float = 0.0
+    torque_bias_nm: float = 0.0
+    torque_gain_tolerance: float = 0.0
+    tactile_noise_mm: float = 0.0
+
+    @property
+    def ideal(self) -> bool:
+        """The exact read-outs (no sensor model applied)."""
+        return self.name == "ideal"
+
+    def as_dict(self) -> dict[str, Any]:
+        """The values as the YAML holds them, with the name."""
+        return asdict(self)
+
+
+def load_sensor_spec(name: str) -> SensorSpec:
+    """The sensor model ``name`` (``"ideal"`` or ``configs/sensors/<name>.yaml``).
+
+    The YAML (read with ``yaml.safe_load``) must hold exactly the keys of :data:`RANGES`,
+    each a finite number in its range; ``ValueError`` names the file, the key and the range.
+    """
+    import yaml
+
+    if name not in SENSOR_MODELS:
+        raise ValueError(f"sensor_model must be one of {SENSOR_MODELS} (got {name!r})")
+    if name == "ideal":
+        return SensorSpec()
+    path = SENSOR_CONFIG_DIR / f"{name}.yaml"
+    with path.open() as fh:
+        data = yaml.safe_load(fh) or {}
+    if not isinstance(data, dict):
+        raise ValueError(f"{path}: expected a mapping")
+    missing, unknown = sorted(set(RANGES) - set(data)), sorted(set(data) - set(RANGES))
+    if missing or unknown:
+        raise ValueError(f"{path}: missing keys {missing}, unknown keys {unknown}")
+    values = {}
+    for key, (low, high) in RANGES.items():
+        v = data[key]
+        ok = isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v)
+        low_ok = ok and (v > low if key == "encoder_resolution_deg" else v >= low)
+        if not (low_ok and v <= high):
+            bracket = "(" if key == "encoder_resolution_deg" else "["
+            raise ValueError(f"{path}: {key} must be a number in {bracket}{low:g}, {high:g}] "
+                             f"(got {v!r})")
+        values[key] = float(v)
+    return SensorSpec(name=name, **values)
+
+
+class SensorState:
+    """The sensors of N hands under a non-ideal :class:`SensorSpec` (see the module doc).
+
+    Parameters
+    ----------
+    spec : SensorSpec
+    num_envs : int
+    dt : float
+        Control period (s), the encoders' differencing interval.
+    tactile : bool
+        The observation reads the fingertip deformations.
+    rand_gain : bool
+        Draw each episode's torque gain (``rand_sensors``).
+
+    Attributes
+    ----------
+    torque_bias : ndarray, shape (N, 2)
+        Per-episode torque offsets (N m).
+    torque_gain : ndarray, shape (N, 2)
+        Per-episode torque gains (1 without ``rand_gain``).
+    angle : ndarray, shape (N, 2)
+        Last encoder readings (rad).
+    """
+
+    def __init__(self, spec: SensorSpec, num_envs: int, dt: float, tactile: bool,
+                 rand_gain: bool):
+        if spec.ideal:
+            raise ValueError("SensorState models non-ideal sensors; 'ideal' reads the state")
+        self.spec = spec
+        self.dt = float(dt)
+        self.tactile = bool(tactile)
+        self.rand_gain = bool(rand_gain)
+        self.resolution = math.radians(spec.encoder_resolution_deg)
+        self.encoder_noise = math.radians(spec.encoder_noise_deg)
+        self.tactile_noise = spec.tactile_noise_mm * 1e-3
+        self.torque_bias = np.zeros((num_envs, 2))
+        self.torque_gain = np.ones((num_envs, 2))
+        self.angle = np.zeros((num_envs, 2))
+        self._draws = 8 if self.tactile else 4
+
+    def start(self, i: int, rng: np.random.Generator) -> None:
+        """Draw the calibration of environment ``i``'s new episode from ``rng``."""
+        self.torque_bias[i] = rng.normal(0.0, self.spec.torque_bias_nm, size=2)
+        if self.rand_gain:
+            t = self.spec.torque_gain_tolerance
+            self.torque_gain[i] = 1.0 + t * rng.uniform(-1.0, 1.0, size=2)
+
+    def read(
+        self,
+        angle: np.ndarray,
+        torque: np.ndarray,
+        deformation: np.ndarray,
+        rows: Sequence[int] | np.ndarray,
+        rngs: Sequence[np.random.Generator],
+        first: bool,
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """Sensed (angle, velocity, torque, deformation) of the environments ``rows``.
+
+        Parameters
+        ----------
+        angle : ndarray, shape (N, 2)
+            True joint angles (rad).
+        torque : ndarray, shape (N, 2)
+            True PID torques (N m).
+        deformation : ndarray, shape (N, 4)
+            True d_n1, d_n2, d_t1, d_t2 (m).
+        rows : sequence of int
+            Environments read now.
+        rngs : sequence of generators
+            The generator of each environment of ``rows`` (in that order).
+        first : bool
+            The first reading of an episode (velocity 0).
+
+        Returns
+        -------
+        angle (N, 2) rad, velocity (N, 2) rad/s, torque (N, 2) N m, deformation (N, 4) m:
+        fresh arrays; rows not in ``rows`` hold the true values (velocity 0).
+        """
+        q = self.resolution
+        theta = np.array(angle, dtype=np.float64)
+        omega = np.zeros_like(theta)
+        tau = np.array(torque, dtype=np.float64)
+        d = np.array(deformation, dtype=np.float64)
+        for i, rng in zip(rows, rngs, strict=True):
+            z = rng.standard_normal(self._draws)
+            reading = q * np.round((theta[i] + self.encoder_noise * z[:2]) / q)
+            if not first:
+                omega[i] = (reading - self.angle[i]) / self.dt
+            self.angle[i] = reading
+            theta[i] = reading
+            tau[i] = (self.torque_gain[i] * tau[i] + self.torque_bias[i]
+                      + self.spec.torque_noise_nm * z[2:4])
+            if self.tactile:
+                d[i] += self.tactile_noise * z[4:8]
+        return theta, omega, tau, d
+
+
+__all__ = ["RANGES", "SENSOR_MODELS", "SensorSpec", "SensorState", "load_sensor_spec"]
+
