@@ -302,6 +302,8 @@ class SoftHandEnv(gym.Env):
         render_mode: str | None = None,
         render_width: int = 480,
         render_height: int = 480,
+        substep_limits: bool = False,
+        slip_window_ms: float | None = None,
     ):
         #: The keywords of this environment (:class:`~softhand_env.envs.options.EnvOptions`).
         given = locals()

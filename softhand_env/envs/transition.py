@@ -23,6 +23,7 @@ import numpy as np
 from softhand_env.envs.config import EnvConfig
 from softhand_env.envs.observation import add_frame_noise, observe_rows
 from softhand_env.envs.start import start_episode
+from softhand_env.envs.windows import SlipWindows
 from softhand_env.physics import friction, validity
 from softhand_env.physics.hand import HandPhysics
 
@@ -111,7 +112,10 @@ class EpisodeBatch:
             base_limit=cfg.base_limit,
             # checked once by build_config, with the corners of the randomisation ranges
             check_stability=False,
+            substep_limits=cfg.substep_limits,
         )
+        #: Slip windows (``slip_window_ms``; None: slip is judged on each control step).
+        self.windows = None if cfg.slip_window is None else SlipWindows(n, cfg.slip_window)
         self.goal = np.zeros((n, cfg.task.goal_dim))
         self.obs = np.zeros((n, cfg.layout.size), dtype=np.float32)
         self.terms = np.zeros((len(cfg.task.terms), n))
@@ -159,6 +163,8 @@ class EpisodeBatch:
         self.friction_ratio[i] = 0.0
         self.tension[i] = False
         self.reason[i] = None
+        if self.windows is not None:
+            self.windows.restart(i)
         self._refresh_goal_columns()
 
     def finish_reset(
@@ -248,9 +254,18 @@ class EpisodeBatch:
             u = self._delay(u)
         else:
             u, ctrl = cfg.actions.setpoints(actions, self._r.setpoint)  # the last commanded
-        status = self.physics.step(u, cfg.n_substeps, strict=False, skip=skip).hands
-        failed, grasped = status.failed, status.grasped
-        contact = self._check_contact(status.impulse, failed, skip)
+        status: Any
+        if self.windows is None:
+            status = self.physics.step(u, cfg.n_substeps, strict=False, skip=skip).hands
+            failed, grasped = status.failed, status.grasped
+            contact = self._check_contact(status.impulse, failed, skip)
+        else:
+            status = self.windows.step(self.physics, u, cfg.n_substeps, self.mu,
+                                       cfg.terminate_on_slip, skip)
+            failed, grasped, contact = status.failed, status.grasped, status.contact
+            self.contact_impulse[:] = status.impulse
+            self.friction_ratio[:] = status.friction_ratio
+            self.tension[:] = status.tension
         if cfg.terminate_on_slip:
             failed = failed | contact
         r = self._r = self.physics.readouts()

@@ -37,6 +37,7 @@ from softhand_env.physics.model import (
     initial_state,
     pack_params,
     pid_torques_batch,
+    with_stop_limits,
 )
 from softhand_env.physics.params import HandParams
 
@@ -280,6 +281,12 @@ class HandPhysics:
     check_stability : bool
         Warn (``RuntimeWarning``) if ``params.dt`` is beyond RK4's stability limit
         (:func:`warn_if_unstable`); also on :meth:`set_params`.
+    substep_limits : bool
+        Test ``dn_limit``, ``base_limit`` and ``ch_limit`` on every RK4 substep in the
+        kernel and end a step at the first substep beyond one of them (the kernel's stop
+        limits, :func:`.model.with_stop_limits`); False (default): the kernel stops only at
+        d_n >= a and the three limits are judged on the state at the end of the step (and
+        the step's largest |C^H|).
     """
 
     def __init__(
@@ -290,6 +297,7 @@ class HandPhysics:
         dn_limit: float | None = None,
         base_limit: float = 1.0,
         check_stability: bool = True,
+        substep_limits: bool = False,
     ):
         if num_hands is not None and (
             isinstance(num_hands, bool)
@@ -306,8 +314,9 @@ class HandPhysics:
         self.ch_limit = float(ch_limit)
         self.dn_limit = float(params.a if dn_limit is None else dn_limit)
         self.base_limit = float(base_limit)
+        self.substep_limits = bool(substep_limits)
         self._params: list[HandParams] = [params] * n
-        self._prm = np.ascontiguousarray(np.tile(pack_params(params), (n, 1)))
+        self._prm = np.ascontiguousarray(np.tile(self._pack(params), (n, 1)))
         self._y = np.tile(initial_state(params), (n, 1))
         self._u = self._y[:, TH_1 : TH_1 + 2].copy()
         self._time = np.zeros(n)
@@ -390,10 +399,17 @@ class HandPhysics:
         if self._check_stability:
             warn_if_unstable(params, stacklevel=2)
         rows = range(self._n) if index is None else (index,)
-        prm = pack_params(params)
+        prm = self._pack(params)
         for i in rows:
             self._params[i] = params
             self._prm[i] = prm
+
+    def _pack(self, params: HandParams) -> np.ndarray:
+        """Packed parameters of a hand with this physics' stop limits (``substep_limits``)."""
+        prm = pack_params(params)
+        if self.substep_limits:
+            with_stop_limits(prm, self.dn_limit, self.base_limit, self.ch_limit)
+        return prm
 
     def get_state(self) -> np.ndarray:
         """Copy of the states [q (9), p (9), z (2)], shape (20,) or (N, 20)."""
