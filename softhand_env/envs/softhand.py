@@ -255,6 +255,9 @@ class SoftHandEnv(gym.Env):
     - v0, validity update: ``info["contact_validated"]`` per fingertip.
     - v0, ladder update: ``setpoint_latency`` keyword and the ``Random`` ids (randomisation
       ladder).
+    - v0, physical-checks update: keywords ``substep_limits`` (the hard limits tested on every
+      RK4 substep) and ``slip_window_ms`` (slip and tension judged on windows of physical
+      time); both off by default, which keeps the episodes of v0 bit for bit.
     """
 
     metadata = {"render_modes": list(RENDER_MODES), "render_fps": 50}

@@ -330,8 +330,11 @@ class EpisodeBatch:
         step), ``grasped`` (N,), ``is_success`` (N,), ``setpoint`` (N, 2) (rad),
         ``physics_flags`` (N,) (kernel status bits), ``setpoint_latency`` (N,) (int64: each
         episode's set-point latency in control steps), ``friction_ratio`` (N, 2) (|J_t| / J_n
-        per finger over the step; inf where J_n <= 0), ``contact_impulse`` (N, 4) (J_n1, J_n2,
-        J_t1, J_t2; N s), ``tension`` (N, 2) (bool: J_n < 0), ``contact_validated`` (N, 2)
+        per finger over the step; inf where J_n <= 0; with ``slip_window_ms``: the largest
+        over the windows that ended in the step, 0 if none did, see
+        :mod:`softhand_env.envs.windows`), ``contact_impulse`` (N, 4) (J_n1, J_n2, J_t1, J_t2
+        over the step; N s), ``tension`` (N, 2) (bool: J_n < 0 over the step, or in a window
+        that ended in it), ``contact_validated`` (N, 2)
         (bool: fingertip inside the contact model's validated box), ``termination_reason`` (N,)
         (None while the episode runs), ``goal`` (N, goal_dim) for goal tasks, then the reward
         terms (N,). The three contact keys are 0 / False at a reset (no step taken). Fresh
