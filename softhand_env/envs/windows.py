@@ -24,8 +24,8 @@ from __future__ import annotations
 from typing import NamedTuple
 
 import numpy as np
+from numba import njit
 
-from softhand_env.physics import friction
 from softhand_env.physics.hand import HandPhysics
 
 
@@ -63,6 +63,51 @@ class WindowedStep(NamedTuple):
     friction_ratio: np.ndarray
     tension: np.ndarray
     contact: np.ndarray
+
+
+@njit(cache=True)
+def _account(m, st_flags, st_error, st_impulse, st_substeps, mu, stop, window, left,
+             win_impulse, failed, active, done, flags, error, step_impulse, ratio, tension,
+             contact):
+    """Book one kernel piece of the hands ``m`` (bool (N,)), in place: their flags, residual
+    maxima, impulses (non-finite read as 0) and substeps; judge each window that ended with
+    it (the arithmetic of :func:`softhand_env.physics.friction.check_contact`: ratio
+    |J_t| / J_n, inf where J_n <= 0; tension J_n < 0; bad if tension or ratio > mu) and start
+    the next one; deactivate hands that failed, or (``stop``) whose window was bad."""
+    for s in range(m.shape[0]):
+        if not m[s]:
+            continue
+        flags[s] |= st_flags[s]
+        for j in range(2):
+            error[s, j] = max(error[s, j], st_error[s, j])
+        for j in range(4):
+            v = st_impulse[s, j]
+            v = v if np.isfinite(v) else 0.0
+            step_impulse[s, j] += v
+            win_impulse[s, j] += v
+        done[s] += st_substeps[s]
+        left[s] -= st_substeps[s]
+        if failed[s]:
+            active[s] = False
+            continue
+        if left[s] > 0:
+            continue
+        bad = False
+        for f in range(2):
+            jn = win_impulse[s, f]
+            r = abs(win_impulse[s, 2 + f]) / jn if jn > 0.0 else np.inf
+            ratio[s, f] = max(ratio[s, f], r)
+            if jn < 0.0:
+                tension[s, f] = True
+            if r > mu[s]:
+                bad = True
+        if bad:
+            contact[s] = True
+            if stop:
+                active[s] = False
+        for j in range(4):
+            win_impulse[s, j] = 0.0
+        left[s] = window
 
 
 class SlipWindows:
@@ -121,7 +166,6 @@ class SlipWindows:
         ratio = np.zeros((n, 2))
         tension = np.zeros((n, 2), dtype=bool)
         contact = np.zeros(n, dtype=bool)
-        never = np.zeros(n, dtype=bool)
         while True:
             piece = np.minimum(n_substeps - done, self.left)
             todo = active & (piece > 0)
@@ -130,34 +174,14 @@ class SlipWindows:
             length = int(piece[todo].max())
             m = todo & (piece == length)
             st = physics.step(setpoint, length, strict=False, skip=~m).hands
-            flags[m] |= st.flags[m]
-            error[m] = np.maximum(error[m], st.constraint_error[m])
-            failed[m] = st.failed[m]
-            grasped[m] = st.grasped[m]
-            reason[m] = st.reason[m]
-            imp = st.impulse[m]
-            imp[~np.isfinite(imp)] = 0.0
-            step_impulse[m] += imp
-            self.impulse[m] += imp
-            taken = st.substeps[m]
-            done[m] += taken
-            self.left[m] -= taken
-            active &= ~(m & failed)
-            ended = np.flatnonzero(m & (self.left == 0) & ~failed)
-            if ended.size:
-                k = ended.size
-                r = np.empty((k, 2))
-                t = np.empty((k, 2), dtype=bool)
-                bad = np.empty(k, dtype=bool)
-                friction.check_contact(self.impulse[ended], mu[ended], never[:k], never[:k],
-                                       np.empty((k, 4)), r, t, bad)
-                ratio[ended] = np.maximum(ratio[ended], r)
-                tension[ended] |= t
-                contact[ended] |= bad
-                self.impulse[ended] = 0.0
-                self.left[ended] = self.window
-                if stop:
-                    active[ended[bad]] = False
+            # every hand in this piece (the usual case): whole rows, no masked copies
+            sel: slice | np.ndarray = slice(None) if m.all() else m
+            failed[sel] = st.failed[sel]
+            grasped[sel] = st.grasped[sel]
+            reason[sel] = st.reason[sel]
+            _account(m, st.flags, st.constraint_error, st.impulse, st.substeps, mu, stop,
+                     self.window, self.left, self.impulse, failed, active, done, flags, error,
+                     step_impulse, ratio, tension, contact)
         return WindowedStep(flags, error, failed, grasped, reason, step_impulse, ratio,
                             tension, contact)
 
