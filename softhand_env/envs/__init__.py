@@ -77,9 +77,12 @@ RANDOM_KWARGS: dict[str, Any] = {
 }
 
 #: Keywords of every ``-v1`` id, on top of the ``-v0`` id's: the one place that says what v1
-#: changes (each stays overridable in ``gym.make``): the realistic sensor model
-#: (:mod:`softhand_env.envs.sensors`).
+#: changes (each stays overridable in ``gym.make``): the hard limits tested on every substep,
+#: slip and tension judged on 20 ms windows of physical time (docs/slip_window.md), the
+#: realistic sensor model (:mod:`softhand_env.envs.sensors`).
 V1_KWARGS: dict[str, Any] = {
+    "substep_limits": True,
+    "slip_window_ms": 20.0,
     "sensor_model": "realistic",
 }
 

@@ -73,6 +73,13 @@ class EnvConfig:
         The sensor model (``sensor_model``; :mod:`softhand_env.envs.sensors`).
     rand_sensors : bool
         Each episode draws its torque-sensor gains.
+    substep_limits : bool
+        The hard limits (``dn_limit``, ``base_limit``, ``ch_limit``) are tested on every RK4
+        substep and a step ends at the first substep beyond one (False: on the state at the
+        end of the control step).
+    slip_window : int or None
+        Slip and tension are judged on windows of this many RK4 substeps, tiled from the end
+        of the grasp phase (None: on each control step).
     render_mode : str or None
     render_size : (int, int)
         Frame (width, height) in pixels.
@@ -97,6 +104,8 @@ class EnvConfig:
     rand_sensors: bool
     render_mode: str | None
     render_size: tuple[int, int]
+    substep_limits: bool = False
+    slip_window: int | None = None
 
 
 def _pair(value: Sequence[float]) -> tuple[float, float]:
@@ -152,6 +161,14 @@ def build_config(options: EnvOptions) -> EnvConfig:
             f"grasp_duration must be a multiple of the RK4 substep {params.dt:g} s "
             f"(got {o.grasp_duration!r})"
         )
+    slip_window = None
+    if o.slip_window_ms is not None:
+        slip_window = round(float(o.slip_window_ms) * 1e-3 / params.dt)
+        if abs(slip_window * params.dt - float(o.slip_window_ms) * 1e-3) > 1e-9:
+            raise ValueError(
+                f"slip_window_ms must be a multiple of the RK4 substep {params.dt * 1e3:g} ms "
+                f"(got {o.slip_window_ms!r})"
+            )
     task_obj = make_task(o.task, **task_kw)
     randomization = Randomization.resolve(bool(o.randomize), **rand_kw)
     randomization.check_ranges(params)
@@ -183,4 +200,6 @@ def build_config(options: EnvOptions) -> EnvConfig:
         rand_sensors=bool(o.rand_sensors),
         render_mode=o.render_mode,
         render_size=(int(o.render_width), int(o.render_height)),
+        substep_limits=bool(o.substep_limits),
+        slip_window=slip_window,
     )

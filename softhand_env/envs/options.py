@@ -278,6 +278,14 @@ class EnvOptions:
                                   "``'human'``", "choice", choices=("human", "rgb_array"))
     render_width: int = _kw(480, "frame width", "int", "px", low=16, high=4096)
     render_height: int = _kw(480, "frame height", "int", "px", low=16, high=4096)
+    substep_limits: bool = _kw(False, "test over-compression, the fingertip base and "
+                               "``ch_limit`` on every RK4 substep, ending the step there "
+                               "(False: at the end of the control step, the v0 semantics)",
+                               "flag")
+    slip_window_ms: float | None = _kw(None, "physical-time window on which slip and tension "
+                                       "are judged, a multiple of the RK4 substep (None: "
+                                       "the control step, the v0 semantics)", "number", "ms",
+                                       low=1.0, high=1000.0)
 
     def as_dict(self) -> dict[str, Any]:
         """The keywords and their values, in signature order."""

@@ -279,8 +279,14 @@ class SoftHandEnv(gym.Env):
     - v0, validity update: ``info["contact_validated"]`` per fingertip.
     - v0, ladder update: ``setpoint_latency`` keyword and the ``Random`` ids (randomisation
       ladder).
+    - v0, physical-checks update: keywords ``substep_limits`` (the hard limits tested on every
+      RK4 substep) and ``slip_window_ms`` (slip and tension judged on windows of physical
+      time); both off by default, which keeps the episodes of v0 bit for bit.
     - v1: every id registered again as ``-v1`` with :data:`softhand_env.envs.V1_KWARGS`; the
-      ``-v0`` ids keep the semantics above (``sensor_model="ideal"``). Realistic sensing
+      ``-v0`` ids keep the semantics above (``sensor_model="ideal"``, checks off). Physical
+      failure checks: ``substep_limits=True`` (over-compression, fingertip base and
+      constraint limits on every RK4 substep) and ``slip_window_ms=20`` (slip and tension on
+      20 ms windows of physical time, whatever the control period). Realistic sensing
       (``sensor_model="realistic"``: quantised, noisy encoders and encoder-differenced
       velocities, motor-current torques with noise and a per-episode offset, noisy tactile
       entries; ``rand_sensors=True`` on the ``Random`` ids), drawn from ``np_random`` after
@@ -336,6 +342,8 @@ class SoftHandEnv(gym.Env):
         render_mode: str | None = None,
         render_width: int = 480,
         render_height: int = 480,
+        substep_limits: bool = False,
+        slip_window_ms: float | None = None,
     ):
         #: The keywords of this environment (:class:`~softhand_env.envs.options.EnvOptions`).
         given = locals()

@@ -24,6 +24,7 @@ from softhand_env.envs.config import EnvConfig
 from softhand_env.envs.observation import add_frame_noise, observe_rows
 from softhand_env.envs.sensors import SensorState
 from softhand_env.envs.start import start_episode
+from softhand_env.envs.windows import SlipWindows
 from softhand_env.physics import friction, validity
 from softhand_env.physics.hand import HandPhysics
 
@@ -116,7 +117,10 @@ class EpisodeBatch:
             base_limit=cfg.base_limit,
             # checked once by build_config, with the corners of the randomisation ranges
             check_stability=False,
+            substep_limits=cfg.substep_limits,
         )
+        #: Slip windows (``slip_window_ms``; None: slip is judged on each control step).
+        self.windows = None if cfg.slip_window is None else SlipWindows(n, cfg.slip_window)
         self.goal = np.zeros((n, cfg.task.goal_dim))
         self.obs = np.zeros((n, cfg.layout.size), dtype=np.float32)
         self.terms = np.zeros((len(cfg.task.terms), n))
@@ -168,6 +172,8 @@ class EpisodeBatch:
         self.friction_ratio[i] = 0.0
         self.tension[i] = False
         self.reason[i] = None
+        if self.windows is not None:
+            self.windows.restart(i)
         self._refresh_goal_columns()
         if self.sensing is not None:  # after every draw of start_episode
             self.sensing.start(i, _generator((rng,), 0))
@@ -267,9 +273,18 @@ class EpisodeBatch:
             u = self._delay(u)
         else:
             u, ctrl = cfg.actions.setpoints(actions, self._r.setpoint)  # the last commanded
-        status = self.physics.step(u, cfg.n_substeps, strict=False, skip=skip).hands
-        failed, grasped = status.failed, status.grasped
-        contact = self._check_contact(status.impulse, failed, skip)
+        status: Any
+        if self.windows is None:
+            status = self.physics.step(u, cfg.n_substeps, strict=False, skip=skip).hands
+            failed, grasped = status.failed, status.grasped
+            contact = self._check_contact(status.impulse, failed, skip)
+        else:
+            status = self.windows.step(self.physics, u, cfg.n_substeps, self.mu,
+                                       cfg.terminate_on_slip, skip)
+            failed, grasped, contact = status.failed, status.grasped, status.contact
+            self.contact_impulse[:] = status.impulse
+            self.friction_ratio[:] = status.friction_ratio
+            self.tension[:] = status.tension
         if cfg.terminate_on_slip:
             failed = failed | contact
         r = self._r = self.physics.readouts()
@@ -334,8 +349,11 @@ class EpisodeBatch:
         step), ``grasped`` (N,), ``is_success`` (N,), ``setpoint`` (N, 2) (rad),
         ``physics_flags`` (N,) (kernel status bits), ``setpoint_latency`` (N,) (int64: each
         episode's set-point latency in control steps), ``friction_ratio`` (N, 2) (|J_t| / J_n
-        per finger over the step; inf where J_n <= 0), ``contact_impulse`` (N, 4) (J_n1, J_n2,
-        J_t1, J_t2; N s), ``tension`` (N, 2) (bool: J_n < 0), ``contact_validated`` (N, 2)
+        per finger over the step; inf where J_n <= 0; with ``slip_window_ms``: the largest
+        over the windows that ended in the step, 0 if none did, see
+        :mod:`softhand_env.envs.windows`), ``contact_impulse`` (N, 4) (J_n1, J_n2, J_t1, J_t2
+        over the step; N s), ``tension`` (N, 2) (bool: J_n < 0 over the step, or in a window
+        that ended in it), ``contact_validated`` (N, 2)
         (bool: fingertip inside the contact model's validated box), ``termination_reason`` (N,)
         (None while the episode runs), ``goal`` (N, goal_dim) for goal tasks, then the reward
         terms (N,). The three contact keys are 0 / False at a reset (no step taken). Fresh

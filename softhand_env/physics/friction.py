@@ -26,6 +26,9 @@ for the same reason (Stewart and Trinkle 1996, Anitescu and Potra 1997). Over a 
 ratio of impulses is the ratio of the mean forces, so at rest it is the static ratio
 |F_t| / F_n exactly. A control step (20 ms in the environments) is far longer than the
 transient, so the transient is averaged in with its true weight (its share of the momentum).
+With the environments' ``slip_window_ms`` the same check applies to fixed windows of physical
+time instead of control steps (:mod:`softhand_env.envs.windows`), so its strictness does not
+depend on the agent's control period.
 """
 
 from __future__ import annotations

@@ -37,6 +37,7 @@ from softhand_env.physics.model import (
     initial_state,
     pack_params,
     pid_torques_batch,
+    with_stop_limits,
 )
 from softhand_env.physics.params import HandParams
 
@@ -295,6 +296,12 @@ class HandPhysics:
         Warn (``RuntimeWarning``) if the step is beyond the stability limit of the
         integrator ``params.integrator`` (:func:`warn_if_unstable`); also on
         :meth:`set_params`.
+    substep_limits : bool
+        Test ``dn_limit``, ``base_limit`` and ``ch_limit`` on every RK4 substep in the
+        kernel and end a step at the first substep beyond one of them (the kernel's stop
+        limits, :func:`.model.with_stop_limits`); False (default): the kernel stops only at
+        d_n >= a and the three limits are judged on the state at the end of the step (and
+        the step's largest |C^H|).
 
     The integrator (``params.integrator``: ``"rk4"`` at ``dt`` or ``"ros2"`` at ``ros2_dt``,
     :mod:`softhand_env.physics.rosenbrock`) is one for all hands; under ``"ros2"`` all hands
@@ -309,6 +316,7 @@ class HandPhysics:
         dn_limit: float | None = None,
         base_limit: float = 1.0,
         check_stability: bool = True,
+        substep_limits: bool = False,
     ):
         if num_hands is not None and (
             isinstance(num_hands, bool)
@@ -325,10 +333,11 @@ class HandPhysics:
         self.ch_limit = float(ch_limit)
         self.dn_limit = float(params.a if dn_limit is None else dn_limit)
         self.base_limit = float(base_limit)
+        self.substep_limits = bool(substep_limits)
         self._params: list[HandParams] = [params] * n
         self._integrator = params.integrator
         self._ros2_dt = params.ros2_dt
-        self._prm = np.ascontiguousarray(np.tile(pack_params(params), (n, 1)))
+        self._prm = np.ascontiguousarray(np.tile(self._pack(params), (n, 1)))
         self._y = np.tile(initial_state(params), (n, 1))
         self._u = self._y[:, TH_1 : TH_1 + 2].copy()
         self._time = np.zeros(n)
@@ -432,10 +441,17 @@ class HandPhysics:
         else:
             self._integrator = params.integrator
             self._ros2_dt = params.ros2_dt
-        prm = pack_params(params)
+        prm = self._pack(params)
         for i in rows:
             self._params[i] = params
             self._prm[i] = prm
+
+    def _pack(self, params: HandParams) -> np.ndarray:
+        """Packed parameters of a hand with this physics' stop limits (``substep_limits``)."""
+        prm = pack_params(params)
+        if self.substep_limits:
+            with_stop_limits(prm, self.dn_limit, self.base_limit, self.ch_limit)
+        return prm
 
     def get_state(self) -> np.ndarray:
         """Copy of the states [q (9), p (9), z (2)], shape (20,) or (N, 20)."""

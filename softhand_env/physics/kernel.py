@@ -16,16 +16,33 @@ flag                   value  meaning
 ``FLAG_CONSTRAINT``    2      max |C^H| above ``ch_limit`` (fatal, default 1e-3 m)
 ``FLAG_LOST``          4      a normal deformation d_n < 0: the grasp is lost (fatal: the
                               bilateral constraint would pull the object)
-``FLAG_OVERCOMPRESSED`` 8     a normal deformation d_n >= a (fatal: outside the model)
+``FLAG_OVERCOMPRESSED`` 8     a normal deformation d_n >= the stop limit ``prm[P_DN_STOP]``
+                              (default a; fatal: outside the model or past the caller's
+                              over-compression limit)
 ``FLAG_BASE``          16     the contact circle passed the fingertip base,
                               tan(theta_p) > (a - d_n)/a_c, where the closed-form energy
-                              over-predicts (not fatal; checked at the end of the call)
+                              over-predicts (not fatal; checked at the end of the call); also
+                              raised, and integration stopped, at the first substep whose
+                              reach past the base exceeds ``prm[P_BASE_STOP]`` (default inf)
 ``FLAG_SKIP``          32     input only: :func:`advance_batch` leaves this system alone
                               (e.g. an environment that restarts this step)
 =====================  =====  ==========================================================
 
 Integration stops at the substep where a fatal flag is raised, leaving the state at that
 substep; the number of substeps actually taken is returned.
+
+Stop limits (the last entries of the packed parameters, :func:`.model.with_stop_limits`):
+after every substep the state is tested against ``prm[P_DN_STOP]`` (d_n, m; default a),
+``prm[P_BASE_STOP]`` (reach past the fingertip base, :func:`.contact.beyond_base`; default
+inf = never) and ``prm[P_CH_STOP]`` (|C^H|, m; default inf = never), and the call stops at
+the first substep beyond one of them with ``FLAG_OVERCOMPRESSED``, ``FLAG_BASE`` or
+``FLAG_CONSTRAINT``. The residual |C^H| of a state is evaluated by the first RK4 stage of the
+substep that starts from it, so a constraint stop comes one substep (0.1 ms) after the first
+state beyond ``P_CH_STOP``; the other limits stop on the offending state itself. With the
+defaults (what :func:`.model.pack_params` packs) a call behaves as it always has: it stops
+only at d_n >= a, non-finite states and lost grasps, and ``ch_limit`` and the base are
+judged at the end of the call. The cheap per-substep test (:func:`_maybe_fatal`) is a
+superset of the exact one (:func:`_stop_flags`), which runs only when it fires.
 
 Diagnostics of a call (``diag``, one row per system in the batch):
 
@@ -62,6 +79,9 @@ from softhand_env.physics.model import (
     N_PARAMS,
     NY,
     P_A,
+    P_BASE_STOP,
+    P_CH_STOP,
+    P_DN_STOP,
     P_DT,
     TH_1,
     TH_OBJ,
@@ -130,29 +150,47 @@ def _store_impulse(diag, imp):
 
 @njit(cache=True)
 def _state_flags(y, prm, ch, ch_limit):
-    """Fatal flags of state y given its holonomic residual ch."""
+    """Flags of state y given its holonomic residual ch: the fatal ones (non-finite, ch above
+    ch_limit, d_n < 0, d_n >= ``prm[P_DN_STOP]``) and ``FLAG_BASE`` where a contact reaches
+    past its base by more than ``prm[P_BASE_STOP]`` (tested only when that is finite)."""
     flags = 0
     for j in range(NY):
         if not math.isfinite(y[j]):
             return FLAG_NONFINITE
     if ch > ch_limit:
         flags |= FLAG_CONSTRAINT
-    a = prm[P_A]
+    dn_stop = prm[P_DN_STOP]
     for i in range(2):
         dn = y[DN_1 + i]
         if dn < 0.0:
             flags |= FLAG_LOST
-        elif dn >= a:
+        elif dn >= dn_stop:
             flags |= FLAG_OVERCOMPRESSED
+    base_stop = prm[P_BASE_STOP]
+    if base_stop < math.inf and past_base(y, prm[P_A], base_stop):
+        flags |= FLAG_BASE
+    return flags
+
+
+@njit(cache=True)
+def _stop_flags(y, prm, ch_max, ch_limit):
+    """Flags that stop integration at state y (the exact test after a substep): those of
+    :func:`_state_flags` without the end-of-call ``ch_limit`` test, plus ``FLAG_CONSTRAINT``
+    if the running max |C^H| ``ch_max`` exceeds ``prm[P_CH_STOP]``."""
+    flags = _state_flags(y, prm, 0.0, ch_limit)
+    if flags != FLAG_NONFINITE and ch_max > prm[P_CH_STOP]:
+        flags |= FLAG_CONSTRAINT
     return flags
 
 
 @njit(cache=True, fastmath=False)
-def _suspect(y, prm):
-    """Cheap superset of ``_state_flags(y, prm, 0.0, ...) != 0``: True if some entry of y may
-    be non-finite (their sum is not finite; an overflowing sum of finite entries only costs
-    the exact check) or a d_n is outside [0, a)."""
-    return _maybe_fatal(_state_sum(y, 0, 1), y[DN_1], y[DN_1 + 1], prm[P_A])
+def _suspect(y, prm, ch_max):
+    """Cheap superset of ``_stop_flags(y, prm, ch_max, ...) != 0`` (see :func:`_maybe_fatal`)."""
+    return _maybe_fatal(
+        _state_sum(y, 0, 1), y[DN_1], y[DN_1 + 1], y[TH_1] - y[TH_OBJ],
+        y[TH_1 + 1] + y[TH_OBJ], ch_max, prm[P_A], prm[P_DN_STOP], prm[P_BASE_STOP],
+        prm[P_CH_STOP],
+    )
 
 
 @njit(cache=True, fastmath=False, inline="always")
@@ -172,9 +210,29 @@ def _state_sum(buf, start, stride):
 
 
 @njit(cache=True, fastmath=False, inline="always")
-def _maybe_fatal(total, d1, d2, a):
-    """False only if the state sum ``total`` is finite and both d_n are in [0, a)."""
-    return not ((total - total == 0.0) & (d1 >= 0.0) & (d1 < a) & (d2 >= 0.0) & (d2 < a))
+def _below_base(d, theta_p, a, limit):
+    """True only if a contact of deformation d in [0, a) and angle theta_p (rad) is surely not
+    past its base by more than ``limit`` (a superset test of :func:`.contact.beyond_base`
+    without transcendental functions: |sin t| <= |t| and cos t >= 1 - t^2/2 turn
+    ``a_c |sin t| > limit (a - d) cos t`` into a bound on t^2; limit = inf: always True for
+    |t| < sqrt 2)."""
+    t2 = theta_p * theta_p
+    r = limit * ((a - d) * (1.0 - 0.5 * t2))
+    return (r >= 0.0) & (d * (2.0 * a - d) * t2 <= r * r)
+
+
+@njit(cache=True, fastmath=False, inline="always")
+def _maybe_fatal(total, d1, d2, tp1, tp2, ch_max, a, dn_stop, base_stop, ch_stop):
+    """False only if the state sum ``total`` is finite, both d_n are in [0, dn_stop), the
+    running max |C^H| ``ch_max`` is at most ``ch_stop`` and neither contact (angles tp1, tp2)
+    can be past its base by more than ``base_stop``: a cheap superset of the stop test (an
+    overflowing sum of finite entries, or a contact near its base, only costs the exact
+    one)."""
+    return not (
+        (total - total == 0.0) & (d1 >= 0.0) & (d1 < dn_stop) & (d2 >= 0.0) & (d2 < dn_stop)
+        & (ch_max <= ch_stop) & _below_base(d1, tp1, a, base_stop)
+        & _below_base(d2, tp2, a, base_stop)
+    )
 
 
 #: The past-the-base test compiled for the kernels (one source: :func:`contact.beyond_base`).
@@ -230,8 +288,8 @@ def _advance_one(y, u, prm, n, ch_limit, diag, k, work):
         ch_max = max(ch_max, ch)
         cn_max = max(cn_max, cn)
         done += 1
-        if _suspect(y, prm):
-            flags = _state_flags(y, prm, 0.0, ch_limit)
+        if _suspect(y, prm, ch_max):
+            flags = _stop_flags(y, prm, ch_max, ch_limit)
             if flags != 0:
                 break
     if flags == 0:
@@ -386,7 +444,8 @@ def _rk4_lanes(Yl, Pl, Hl, K1, K2, K3, K4, Tl, Il, nl):
 @njit(cache=True, error_model="numpy")
 def _lanes_suspect(Yl, Pl, CHM, CNM, K1, nl):
     """Update the running residual maxima from the stage-1 residuals in K1; return the number
-    of lanes whose state may carry a fatal flag (a non-finite entry or a d_n outside [0, a))."""
+    of lanes whose state may carry a stop flag (:func:`_maybe_fatal`: a non-finite entry, a
+    d_n outside [0, P_DN_STOP), a residual or a base reach beyond its stop limit)."""
     count = 0
     for l in range(nl):
         CHM[l] = max(CHM[l], max(abs(K1[_R_RES * LANES + l]), abs(K1[(_R_RES + 1) * LANES + l])))
@@ -394,9 +453,13 @@ def _lanes_suspect(Yl, Pl, CHM, CNM, K1, nl):
             CNM[l], max(abs(K1[(_R_RES + 2) * LANES + l]), abs(K1[(_R_RES + 3) * LANES + l]))
         )
         # as _suspect, on lane l of the structure-of-arrays block
+        th_obj = Yl[TH_OBJ * LANES + l]
         bad = _maybe_fatal(
             _state_sum(Yl, l, LANES),
-            Yl[DN_1 * LANES + l], Yl[(DN_1 + 1) * LANES + l], Pl[P_A * LANES + l],
+            Yl[DN_1 * LANES + l], Yl[(DN_1 + 1) * LANES + l],
+            Yl[TH_1 * LANES + l] - th_obj, Yl[(TH_1 + 1) * LANES + l] + th_obj, CHM[l],
+            Pl[P_A * LANES + l], Pl[P_DN_STOP * LANES + l], Pl[P_BASE_STOP * LANES + l],
+            Pl[P_CH_STOP * LANES + l],
         )
         count += 1 if bad else 0
     return count
@@ -461,7 +524,7 @@ def _advance_block(Y, U, PRM, n, ch_limit, DIAG, FLAGS, systems):
             y = Y[s]
             for j in range(NY):
                 y[j] = Yl[j * LANES + l]
-            flags = _state_flags(y, PRM[s], 0.0, ch_limit)
+            flags = _stop_flags(y, PRM[s], CHM[l], ch_limit)
             if flags != 0:
                 FLAGS[s] = flags
                 DIAG[s, 0] = CHM[l]

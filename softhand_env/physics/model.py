@@ -66,12 +66,18 @@ X_OBJ, Y_OBJ, TH_OBJ, TH_1, TH_2, DN_1, DN_2, DT_1, DT_2 = range(9)
 #: Names of q, in order.
 Q_NAMES = ("x_obj", "y_obj", "theta_obj", "theta_1", "theta_2", "d_n1", "d_n2", "d_t1", "d_t2")
 
-# Index of each parameter in the packed vector.
+# Index of each parameter in the packed vector: the model's 23, then the kernels' stop limits
+# (P_DN_STOP: d_n (m) at or above which integration stops, default a; P_BASE_STOP: reach past
+# the fingertip base above which it stops, default inf = never; P_CH_STOP: |C^H| (m) above
+# which it stops, default inf = never; see :mod:`softhand_env.physics.kernel`).
 (
     P_L, P_WFI, P_A, P_WOBJ, P_DFI, P_MOBJ, P_IOBJ, P_I1, P_I2, P_MDEF, P_E, P_G, P_CN, P_CT,
     P_KP, P_KD, P_KI, P_ALPHA, P_BETA, P_DT, P_SX1, P_SX2, P_KB,
-) = range(23)
-N_PARAMS = 23
+    P_DN_STOP, P_BASE_STOP, P_CH_STOP,
+) = range(26)
+N_PARAMS = 26
+#: Entries of the packed vector the right-hand side reads (the model's parameters).
+N_MODEL_PARAMS = 23
 
 # Floating-point mode of the right-hand side: strict IEEE (no LLVM fast-math). The single-system
 # kernel and the lane (SIMD) kernel compile the same source in different contexts; with no
@@ -85,6 +91,9 @@ _FASTMATH = False
 def pack_params(params: HandParams) -> np.ndarray:
     """Pack :class:`HandParams` into the float64 vector the compiled functions take.
 
+    The last three entries are the kernels' stop limits at their defaults (stop at d_n >= a
+    only; no stop on the fingertip base or on |C^H|); :func:`with_stop_limits` sets others.
+
     Returns
     -------
     ndarray, shape (N_PARAMS,)
@@ -95,10 +104,34 @@ def pack_params(params: HandParams) -> np.ndarray:
             params.L, params.W_fi, params.a, params.W_obj, params.d_fi, params.M_obj,
             params.I_obj, params.I_1, params.I_2, params.m_deform, params.E, params.g,
             params.c_n, params.c_t, params.Kp, params.Kd, params.Ki, params.alpha, params.beta,
-            params.dt, s1, s2, params.bending,
+            params.dt, s1, s2, params.bending, params.a, math.inf, math.inf,
         ],
         dtype=np.float64,
     )
+
+
+def with_stop_limits(
+    prm: np.ndarray, dn_stop: float, base_stop: float = math.inf, ch_stop: float = math.inf
+) -> np.ndarray:
+    """Packed parameters ``prm`` ((N_PARAMS,) or (N, N_PARAMS)) with the kernels' stop
+    limits set, in place (also returned).
+
+    Parameters
+    ----------
+    dn_stop : float
+        d_n (m) at or above which integration stops (``FLAG_OVERCOMPRESSED``); values above
+        the fingertip radius a are clipped to a (the model ends there).
+    base_stop : float
+        Reach past the fingertip base (dimensionless, >= 1; 1 = the base,
+        :func:`softhand_env.physics.contact.beyond_base`) above which integration stops
+        (``FLAG_BASE``); ``inf``: never.
+    ch_stop : float
+        |C^H| (m) above which integration stops (``FLAG_CONSTRAINT``); ``inf``: never.
+    """
+    prm[..., P_DN_STOP] = np.minimum(prm[..., P_A], dn_stop)
+    prm[..., P_BASE_STOP] = base_stop
+    prm[..., P_CH_STOP] = ch_stop
+    return prm
 
 
 def initial_finger_angle(params: HandParams) -> float:
