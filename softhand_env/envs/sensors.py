@@ -9,17 +9,17 @@ The keyword ``sensor_model`` chooses how the observation reads the hand:
   the key names; rationale in ``docs/sensors.md``), applied by :class:`SensorState`:
 
   - **joint angle**: a quantised encoder, theta_meas = q round((theta + n) / q), q the
-    resolution ``encoder_resolution_deg``, n ~ N(0, ``encoder_noise_deg``^2) per reading;
+    resolution ``encoder_resolution_deg``, n ~ N(0, s^2) per reading, s = ``encoder_noise_deg``;
   - **joint velocity**: the finite difference of two successive encoder readings over the
     control period, (theta_meas(t) - theta_meas(t - dt)) / dt (0 at reset), so it is
     quantised in steps of q / dt and carries the encoder noise (sqrt(2) n / dt);
   - **joint torque** (motor current times the torque constant): tau_meas = g tau + b + m,
-    tau the PID torque, b a per-episode offset ~ N(0, ``torque_bias_nm``^2) per joint, m ~
-    N(0, ``torque_noise_nm``^2) per reading, g the torque-constant gain, 1 unless
+    tau the PID torque, b a per-episode offset ~ N(0, s_b^2) per joint (s_b = ``torque_bias_nm``), m ~
+    N(0, s_m^2) per reading (s_m = ``torque_noise_nm``), g the torque-constant gain, 1 unless
     ``rand_sensors=True``, which draws it per episode and joint from 1 + U(-t, t), t =
     ``torque_gain_tolerance``;
-  - **fingertip deformation** (``obs_mode="proprio_tactile"``): d + N(0,
-    ``tactile_noise_mm``^2) on each of d_n1, d_n2, d_t1, d_t2.
+  - **fingertip deformation** (``obs_mode="proprio_tactile"``): d + N(0, s_d^2) on each of
+    d_n1, d_n2, d_t1, d_t2, s_d = ``tactile_noise_mm``.
 
   The set-point entries are the commands the controller holds, known exactly.
 

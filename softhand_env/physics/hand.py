@@ -277,6 +277,10 @@ class HandReadouts(NamedTuple):
 class HandPhysics:
     """States, integration, failure classification and read-outs of N hands (chapter-5 model).
 
+    The integrator (``params.integrator``: ``"rk4"`` at ``dt`` or ``"ros2"`` at ``ros2_dt``,
+    :mod:`softhand_env.physics.rosenbrock`) is one for all hands; under ``"ros2"`` all hands
+    also share ``dt`` and ``ros2_dt`` (:meth:`set_params` refuses others).
+
     Parameters
     ----------
     params : HandParams, optional
@@ -302,10 +306,6 @@ class HandPhysics:
         limits, :func:`.model.with_stop_limits`); False (default): the kernel stops only at
         d_n >= a and the three limits are judged on the state at the end of the step (and
         the step's largest |C^H|).
-
-    The integrator (``params.integrator``: ``"rk4"`` at ``dt`` or ``"ros2"`` at ``ros2_dt``,
-    :mod:`softhand_env.physics.rosenbrock`) is one for all hands; under ``"ros2"`` all hands
-    also share ``dt`` and ``ros2_dt`` (:meth:`set_params` refuses others).
     """
 
     def __init__(

@@ -96,8 +96,8 @@ class HeldSetpoints:
     steps_each : int
         Control steps per pair.
 
-    For environments made with ``action_mode="absolute", normalize_action=False`` (the action
-    is the set-point pair in rad). ``state`` is the step counter.
+    For environments made with ``action_mode="absolute"`` and ``normalize_action=False`` (the
+    action is the set-point pair in rad). ``state`` is the step counter.
     """
 
     def __init__(self, setpoints: Any, steps_each: int):
