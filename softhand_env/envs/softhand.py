@@ -286,7 +286,9 @@ class SoftHandEnv(gym.Env):
       ``-v0`` ids keep the semantics above (``sensor_model="ideal"``, checks off). Physical
       failure checks: ``substep_limits=True`` (over-compression, fingertip base and
       constraint limits on every RK4 substep) and ``slip_window_ms=20`` (slip and tension on
-      20 ms windows of physical time, whatever the control period). Realistic sensing
+      20 ms windows of physical time, whatever the control period). The ROS2 integrator at
+      1 ms (``hand_overrides={"integrator": "ros2"}``, :data:`softhand_env.envs.V1_HAND_OVERRIDES`)
+      in place of RK4 at 0.1 ms. Realistic sensing
       (``sensor_model="realistic"``: quantised, noisy encoders and encoder-differenced
       velocities, motor-current torques with noise and a per-episode offset, noisy tactile
       entries; ``rand_sensors=True`` on the ``Random`` ids), drawn from ``np_random`` after

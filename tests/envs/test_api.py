@@ -23,6 +23,7 @@ from softhand_env.envs import (
     RANDOM_KWARGS,
     V0_IDS,
     V1_IDS,
+    V1_HAND_OVERRIDES,
     V1_KWARGS,
     V1_RANDOM_KWARGS,
     SoftHandEnv,
@@ -55,8 +56,13 @@ def test_ids_registered_with_time_limit_and_vector_entry_point():
         random = env_id[:-3].endswith("Random")
         extra = RANDOM_KWARGS if random else {}
         if env_id in V1_IDS:
-            extra = {**extra, **V1_KWARGS, **(V1_RANDOM_KWARGS if random else {})}
+            hand = {**extra.get("hand_overrides", {}), **V1_HAND_OVERRIDES}
+            extra = {**extra, **V1_KWARGS, "hand_overrides": hand,
+                     **(V1_RANDOM_KWARGS if random else {})}
         assert spec.kwargs == {"task": task, **extra}
+        if env_id in V1_IDS:
+            assert spec.kwargs["hand_overrides"]["integrator"] == "ros2"
+            assert spec.kwargs["substep_limits"] and spec.kwargs["slip_window_ms"] == 20.0
         assert spec.vector_entry_point is not None
         env = gym.make(env_id)
         assert isinstance(env.unwrapped, SoftHandEnv)
