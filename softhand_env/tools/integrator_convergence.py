@@ -16,8 +16,8 @@ import math
 import numpy as np
 
 from softhand_env.physics import HandPhysics
-from softhand_env.physics.params import HandParams
 from softhand_env.physics.motions import PAPER_MOTIONS_DEG
+from softhand_env.physics.params import HandParams
 
 #: Control period (s) and periods per motion.
 PERIOD = 0.02

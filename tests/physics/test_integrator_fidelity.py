@@ -16,8 +16,8 @@ import numpy as np
 import pytest
 
 from softhand_env.physics import HandPhysics, rosenbrock
-from softhand_env.physics.params import HandParams
 from softhand_env.physics.motions import PAPER_MOTIONS_DEG
+from softhand_env.physics.params import HandParams
 
 RK4 = HandParams()
 ROS2 = HandParams(integrator="ros2")
