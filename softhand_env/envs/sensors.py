@@ -14,8 +14,9 @@ The keyword ``sensor_model`` chooses how the observation reads the hand:
     control period, (theta_meas(t) - theta_meas(t - dt)) / dt (0 at reset), so it is
     quantised in steps of q / dt and carries the encoder noise (sqrt(2) n / dt);
   - **joint torque** (motor current times the torque constant): tau_meas = g tau + b + m,
-    tau the PID torque, b a per-episode offset ~ N(0, s_b^2) per joint (s_b = ``torque_bias_nm``), m ~
-    N(0, s_m^2) per reading (s_m = ``torque_noise_nm``), g the torque-constant gain, 1 unless
+    tau the PID torque, b a per-episode offset ~ N(0, s_b^2) per joint
+    (s_b = ``torque_bias_nm``), m ~ N(0, s_m^2) per reading (s_m = ``torque_noise_nm``),
+    g the torque-constant gain, 1 unless
     ``rand_sensors=True``, which draws it per episode and joint from 1 + U(-t, t), t =
     ``torque_gain_tolerance``;
   - **fingertip deformation** (``obs_mode="proprio_tactile"``): d + N(0, s_d^2) on each of
