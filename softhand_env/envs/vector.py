@@ -25,7 +25,15 @@ from gymnasium.vector.utils import batch_space
 
 from softhand_env.envs.actions import action_array
 from softhand_env.envs.config import build_config
-from softhand_env.envs.options import EnvOptions, arguments_table, keyword_signature
+from softhand_env.envs.options import (
+    MAX_EPISODE_STEPS,
+    MAX_NUM_ENVS,
+    EnvOptions,
+    arguments_table,
+    check_count,
+    check_seed,
+    keyword_signature,
+)
 from softhand_env.envs.task_configs import load_task_config
 from softhand_env.envs.transition import EpisodeBatch, reset_goal
 
@@ -74,15 +82,11 @@ class SoftHandVectorEnv(VectorEnv):
         cfg = build_config(options)
         #: The keywords of these environments (:class:`~softhand_env.envs.options.EnvOptions`).
         self.options = options
-        if isinstance(num_envs, bool) or not isinstance(num_envs, (int, np.integer)):
-            raise ValueError(f"num_envs must be an int >= 1 (got {num_envs!r})")
-        if num_envs < 1:
-            raise ValueError(f"num_envs must be >= 1 (got {num_envs!r})")
+        n = check_count("num_envs", num_envs, MAX_NUM_ENVS)
         if max_episode_steps is None:
             max_episode_steps = load_task_config(options.task)["max_episode_steps"]
-        if int(max_episode_steps) < 1:
-            raise ValueError(f"max_episode_steps must be >= 1 (got {max_episode_steps!r})")
-        n = int(num_envs)
+        max_episode_steps = check_count("max_episode_steps", max_episode_steps,
+                                        MAX_EPISODE_STEPS)
         self.config = cfg
         self.task = cfg.task
         self.num_envs = n
@@ -131,12 +135,14 @@ class SoftHandVectorEnv(VectorEnv):
         n = self.num_envs
         if seed is None:
             seeds: list[int | None] = [None] * n
-        elif isinstance(seed, (int, np.integer)):
-            seeds = [int(seed) + i for i in range(n)]
-        else:
-            seeds = list(seed)
+        elif isinstance(seed, (list, tuple, np.ndarray)):
+            seeds = [check_seed(s, f"seed[{i}]") for i, s in enumerate(seed)]
             if len(seeds) != n:
                 raise ValueError(f"seed list must have length num_envs={n} (got {len(seeds)})")
+        else:
+            first = check_seed(seed)
+            assert first is not None
+            seeds = [first + i for i in range(n)]
         goal = reset_goal(options, ("goal", "reset_mask"))
         mask = np.ones(n, dtype=bool)
         if options is not None and "reset_mask" in options:
