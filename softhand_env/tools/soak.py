@@ -229,4 +229,6 @@ def main(argv: list[str] | None = None) -> int:
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    from softhand_env.cli import run_cli
+
+    sys.exit(run_cli(main))
