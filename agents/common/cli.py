@@ -25,9 +25,9 @@ from softhand_env.cli import (  # noqa: F401  (re-exported for the commands)
     run_cli,
 )
 
-
-class UserError(CliError):
-    """A wrong input; the CLIs print its message as one line and exit with code 2."""
+#: A wrong input; the CLIs print its message as one line and exit with code 2 (the class of
+#: :mod:`softhand_env.cli`, so the output checks there raise it too).
+UserError = CliError
 
 
 def parse_kv(items: Sequence[str] | None, what: str = "--env-kwargs") -> dict[str, Any]:
