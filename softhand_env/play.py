@@ -177,6 +177,9 @@ def _run(argv: Sequence[str] | None) -> int:
 
     import softhand_env  # noqa: F401  (registers the ids)
 
+    ours = sorted(k for k in gym.registry if k.startswith("SoftHand"))
+    if args.env not in ours:  # never build another package's env
+        raise CliError(f"--env {args.env!r} is not a soft-hand env ({', '.join(ours)})")
     env = gym.make(args.env, render_mode="rgb_array", render_width=args.size,
                    render_height=args.size, action_mode="delta",
                    max_delta_deg=args.max_delta_deg)
