@@ -9,7 +9,6 @@ import time of the command on a loaded 2-core machine (5-40 s measured).
 
 from __future__ import annotations
 
-import json
 import os
 import subprocess
 import sys

@@ -13,6 +13,7 @@ import time
 from pathlib import Path
 
 import pytest
+
 from agents import evaluate
 from agents.runs.loading import resolve_model
 from agents.runs.model_files import sha256
