@@ -132,7 +132,8 @@ def check_output_dir(out: str | Path, names: Iterable[str], force: bool,
     if path.exists() and not path.is_dir():
         raise CliError(f"{what} {path} exists and is not a directory")
     if path.is_dir() and not force:
-        found = sorted({p.name for pattern in names for p in path.glob(pattern)})
+        found = list(dict.fromkeys(p.name for pattern in names  # in the order of names
+                                   for p in sorted(path.glob(pattern))))
         if found:
             shown = ", ".join(found[:5]) + (", ..." if len(found) > 5 else "")
             raise CliError(f"{what} {path} already holds {shown}; pass --force to overwrite "

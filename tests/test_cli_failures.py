@@ -61,7 +61,7 @@ def _cases(tmp: Path) -> list[tuple[str, list[str], str]]:
         ("agents.evaluate", ["--policy", "paper", "--seed", "-1"], "--seed"),
         ("agents.evaluate", [*evaluate, "--out", UNWRITABLE], "not writable"),
         ("agents.evaluate", [*evaluate, "--out", str(evaluated)],
-         "episode.gif, trajectories.png; pass --force"),
+         "trajectories.png, episode.gif; pass --force"),
         ("agents.evaluate", [*evaluate, "--goals", str(deep), "--out", str(tmp / "e")],
          "RecursionError"),
         ("agents.evaluate", ["--model", str(tmp / "nothing.zip")], "not found"),
