@@ -47,10 +47,11 @@ class SoftHandVectorEnv(VectorEnv):
     Parameters
     ----------
     num_envs : int
-        Number of environments N.
+        Number of environments N, an int in [1, 65536] (``MAX_NUM_ENVS``).
     max_episode_steps : int, optional
-        Per-environment time limit in control steps (truncation); ``None`` uses the task's
-        ``configs/tasks/<task>.yaml`` value (``make_vec`` passes the registered one).
+        Per-environment time limit in control steps (truncation), an int in [1, 1e7]
+        (``MAX_EPISODE_STEPS``); ``None`` uses the task's ``configs/tasks/<task>.yaml`` value
+        (``make_vec`` passes the registered one).
     autoreset_mode : AutoresetMode or str
         ``"NextStep"`` (default), ``"SameStep"`` or ``"Disabled"``.
     **kwargs
@@ -127,8 +128,9 @@ class SoftHandVectorEnv(VectorEnv):
     ) -> tuple[np.ndarray, dict[str, Any]]:
         """Reset all environments, or those of ``options["reset_mask"]`` (bool (N,)).
 
-        ``seed``: None (keep each generator; seed fresh ones from entropy), an int s (env i
-        gets s + i) or a list of N ints/None. ``options["goal"]``: a goal (goal_dim,) (SI) for
+        ``seed``: None (keep each generator; seed fresh ones from entropy), an int s >= 0
+        (env i gets s + i) or a list of N ints/None (the single env's rule,
+        :func:`~softhand_env.envs.options.check_seed`). ``options["goal"]``: a goal (goal_dim,) (SI) for
         every environment reset, or (N, goal_dim) one per environment. Other option keys raise
         ``ValueError``; ``step`` before every environment was reset raises ``ResetNeeded``.
         """
