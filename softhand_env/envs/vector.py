@@ -130,8 +130,9 @@ class SoftHandVectorEnv(VectorEnv):
 
         ``seed``: None (keep each generator; seed fresh ones from entropy), an int s >= 0
         (env i gets s + i) or a list of N ints/None (the single env's rule,
-        :func:`~softhand_env.envs.options.check_seed`). ``options["goal"]``: a goal (goal_dim,) (SI) for
-        every environment reset, or (N, goal_dim) one per environment. Other option keys raise
+        :func:`~softhand_env.envs.options.check_seed`). ``options["goal"]``: a goal
+        (goal_dim,) (SI) for every environment reset, or (N, goal_dim) one per environment.
+        Other option keys raise
         ``ValueError``; ``step`` before every environment was reset raises ``ResetNeeded``.
         """
         n = self.num_envs
