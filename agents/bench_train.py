@@ -23,6 +23,8 @@ import time
 from collections.abc import Sequence
 from typing import Any
 
+from agents.common.cli import SEED_MAX, ArgumentParser, UserError, check_range, run_cli
+
 #: Rollout/update shape of the native run: 8192 samples per update, 20 minibatch steps.
 #: Measured alternatives (Reorient, 2 shared cores, load ~1.7; env steps/s): batch 4096 x 4
 #: epochs 22k; 128 x 64 envs/steps, batch 1024 x 5 epochs 15k (5.6k with 2 torch threads:
@@ -38,7 +40,7 @@ NATIVE_DEFAULTS: dict[str, int] = {
 
 
 def parse_args(argv: Sequence[str] | None = None) -> argparse.Namespace:
-    p = argparse.ArgumentParser(prog="python -m agents.bench_train",
+    p = ArgumentParser(prog="python -m agents.bench_train",
                                 description=__doc__.split("\n\n")[0])
     p.add_argument("--env", default="SoftHandReorient-v0",
                    help="environment id with a ppo.yml entry and no env_wrapper")
@@ -56,6 +58,8 @@ def parse_args(argv: Sequence[str] | None = None) -> argparse.Namespace:
     for key in ["steps", *(f"native_{k}" for k in NATIVE_DEFAULTS), "dummy_torch_threads"]:
         if getattr(args, key) < 1:
             p.error(f"--{key.replace('_', '-')} must be >= 1")
+    check_range("--steps", args.steps, 1, 10**9)
+    check_range("--seed", args.seed, 0, SEED_MAX)
     return args
 
 
@@ -127,8 +131,8 @@ def main(argv: Sequence[str] | None = None) -> float:
 
     hp = load_hyperparams("ppo", args.env)
     if hp.get("env_wrapper"):
-        raise SystemExit(f"error: {args.env}'s ppo.yml entry uses env_wrapper, which the native "
-                         "vector env cannot take; choose another --env")
+        raise UserError(f"{args.env}'s ppo.yml entry uses env_wrapper, which the native "
+                        "vector env cannot take; choose another --env")
     native_hp = {**hp, **{k: getattr(args, f"native_{k}") for k in NATIVE_DEFAULTS
                           if k != "torch_threads"}}
     cpus = os.cpu_count()
@@ -148,4 +152,4 @@ def main(argv: Sequence[str] | None = None) -> float:
 
 
 if __name__ == "__main__":
-    main()
+    run_cli(main)

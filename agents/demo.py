@@ -12,6 +12,10 @@
    (``agents/models/<algo>/<env id>_1``, installed with the package; a missing one is an error,
    exit code 2, naming the file) on the same seeded held-out goals; a comparison table is
    printed and written to ``summary.md``.
+
+Every input is checked before anything runs: ``--n-episodes`` and ``--seed`` as
+``agents.evaluate`` checks them, ``--out`` a writable directory holding no file (an earlier
+demo is not overwritten without ``--force``), a shipped model for each goal task.
 """
 
 from __future__ import annotations
@@ -21,7 +25,14 @@ import time
 from collections.abc import Sequence
 from pathlib import Path
 
-from agents.common.cli import UserError, run_cli
+from agents.common.cli import (
+    SEED_MAX,
+    ArgumentParser,
+    UserError,
+    check_output_dir,
+    check_range,
+    run_cli,
+)
 from agents.common.metrics import ERROR_KEYS
 from agents.runs.loading import resolve_model, shipped_models
 
@@ -40,15 +51,34 @@ def learned_label(model: str | Path) -> str:
 
 
 def parse_args(argv: Sequence[str] | None) -> argparse.Namespace:
-    p = argparse.ArgumentParser(prog="python -m agents.demo", description=__doc__.split("\n")[0])
+    """Command-line arguments, range-checked as ``agents.evaluate`` checks them."""
+    p = ArgumentParser(prog="python -m agents.demo", description=__doc__.split("\n")[0])
     p.add_argument("--out", default="out/demo", help="output directory (default out/demo)")
     p.add_argument("--n-episodes", type=int, default=20,
-                   help="held-out goals per agent (default 20; the README table uses 100)")
+                   help="held-out goals per agent, 1 .. 100000 (default 20; the README "
+                        "table uses 100)")
     p.add_argument("--seed", type=int, default=10000, help="first goal seed (default 10000)")
+    p.add_argument("--force", action="store_true",
+                   help="write into an --out that already holds files (overwriting them)")
     args = p.parse_args(argv)
-    if args.n_episodes < 1:
-        p.error("--n-episodes must be >= 1")
+    check_range("--n-episodes", args.n_episodes, 1, 100_000)
+    check_range("--seed", args.seed, 0, SEED_MAX - args.n_episodes)
     return args
+
+
+def check_inputs(args: argparse.Namespace) -> dict[str, Path]:
+    """Everything the demo needs, before any of it runs: ``--out`` a writable directory that
+    holds no file (unless ``--force``), a shipped model for every goal task. Returns the
+    shipped model of each goal task."""
+    check_output_dir(args.out, ("*",), args.force)
+    shipped = shipped_models()
+    models = {}
+    for env_id in GOAL_ENVS:
+        if env_id not in shipped:
+            raise UserError(f"no shipped model for {env_id}: expected "
+                            f"agents/models/<algo>/{env_id}_1/{env_id}.zip (package data)")
+        models[env_id] = shipped[env_id]
+    return models
 
 
 def _row(env_id: str, agent: str, s: dict[str, float]) -> str:
@@ -63,31 +93,33 @@ def _row(env_id: str, agent: str, s: dict[str, float]) -> str:
 
 
 def main(argv: Sequence[str] | None = None) -> list[str]:
+    """CLI entry point; returns the rows of the comparison table. Every input is checked
+    (:func:`check_inputs`) before anything is run or written."""
     from agents import evaluate
     from softhand_env import figures
 
     args = parse_args(argv)
+    models = check_inputs(args)
     out = Path(args.out)
+    force = ["--force"] if args.force else []
     t0 = time.perf_counter()
     print("== chapter 5: motions 1-8 (dynamic model)")
-    figures.main(["dynamics", "--out", str(out / "chapter5")])
+    figures.main(["dynamics", "--out", str(out / "chapter5"), *force])
     print("== chapter 5: scripted replay through gym.make('SoftHand-v0')")
-    evaluate.main(["--policy", "paper", "--n-episodes", "1", "--out", str(out / "chapter5_gym")])
+    evaluate.main(["--policy", "paper", "--n-episodes", "1", "--out", str(out / "chapter5_gym"),
+                   *force])
     print("== chapter 4: quasi-static handling process")
-    figures.main(["quasistatic", "--out", str(out / "chapter4")])
+    figures.main(["quasistatic", "--out", str(out / "chapter4"), *force])
     rows = ["| task | agent | success | final \\|x\\| error (median / max) "
             "| final \\|θ\\| error (median / max) |",
             "| --- | --- | --- | --- | --- |"]
-    common = ["--n-episodes", str(args.n_episodes), "--seed", str(args.seed)]
+    common = ["--n-episodes", str(args.n_episodes), "--seed", str(args.seed), *force]
     for env_id in GOAL_ENVS:
         print(f"== {env_id}: model-based blind baseline")
         s = evaluate.main(["--policy", "model-based", "--env", env_id, *common, "--no-plots",
                            "--out", str(out / f"{env_id}_baseline")])
         rows.append(_row(env_id, "model-based baseline", s))
-        model = shipped_models().get(env_id)
-        if model is None:
-            raise UserError(f"no shipped model for {env_id}: expected "
-                            f"agents/models/<algo>/{env_id}_1/{env_id}.zip (package data)")
+        model = models[env_id]
         print(f"== {env_id}: learned agent ({model})")
         s = evaluate.main(["--model", str(model), *common,
                            "--out", str(out / f"{env_id}_learned")])

@@ -45,7 +45,7 @@ from typing import Any
 
 import numpy as np
 
-from agents.common.cli import UserError, check_range, run_cli
+from agents.common.cli import UserError, check_range, check_run_location, run_cli
 from agents.common.env_factory import make_env, task_targets, wrapper_list
 from agents.common.metrics import error_score, final_errors, success_kwargs, summarize
 from agents.runs.loading import ModelPolicy
@@ -438,10 +438,14 @@ def dagger(model: Any, teacher: ModelPolicy, env_id: str, kwargs: dict[str, Any]
 def main(argv: Sequence[str] | None = None) -> Path:
     """CLI entry point; returns the run directory of the student."""
     args = parse_args(argv)
-    config = resolve_config(args, command="agents.distill")
-    hp, rec = config.hyperparams, config.record
     if args.algo != "ppo":
         raise UserError("the student is saved as a PPO policy: use --algo ppo")
+    check_run_location(args.log_folder)
+    planned = next_run_dir(Path(args.log_folder), "ppo", args.env, args.run_name)
+    if planned.exists():
+        raise UserError(f"run directory {planned} exists (choose another --run-name)")
+    config = resolve_config(args, command="agents.distill")
+    hp, rec = config.hyperparams, config.record
     teacher = ModelPolicy(args.teacher)
     kwargs, teacher_kwargs = check_pair(teacher, args.env, hp)
     wrapper = config.env_wrapper

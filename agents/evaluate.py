@@ -32,6 +32,8 @@ overwritten without ``--force``): ``results.yml`` (summary and every
 episode), ``trajectories.png`` (object x, theta and set-points over time) and ``episode.gif``
 (the ``--gif-episode`` episode, by default the successful one in which the object moves most,
 rendered from ``render_mode="rgb_array"`` frames with the time, goal and object pose drawn on).
+``--out`` is checked (a directory, writable, none of these files there unless ``--force``)
+before the model is loaded.
 """
 
 from __future__ import annotations
@@ -49,6 +51,7 @@ from agents.common.cli import (
     SEED_MAX,
     ArgumentParser,
     UserError,
+    check_output_dir,
     check_range,
     parse_kv,
     run_cli,
@@ -133,7 +136,8 @@ def parse_args(argv: Sequence[str] | None = None) -> EvaluateSettings:
     p.add_argument("--stochastic", action="store_true", help="sample model actions")
     p.add_argument("--out", default=None,
                    help="output directory (default logs/eval/<env id>/<model run or policy>); "
-                        "an existing results.yml is never overwritten without --force")
+                        "existing results (results.yml, trajectories.png, episode.gif) are "
+                        "never overwritten without --force")
     p.add_argument("--force", action="store_true", help="overwrite earlier results in --out")
     p.add_argument("--no-plots", action="store_true", help="skip the PNG and the GIF")
     p.add_argument("--gif-episode", type=int, default=None,
@@ -264,13 +268,16 @@ def output_dir(args: EvaluateSettings, env_id: str, policy: Any) -> Path:
     return Path("logs") / "eval" / env_id / name
 
 
-def check_output(out: Path, force: bool) -> None:
-    """:class:`UserError` if ``out`` is a file, or holds results and ``force`` is not set."""
-    if out.exists() and not out.is_dir():
-        raise UserError(f"--out {out} exists and is not a directory")
-    if (out / "results.yml").exists() and not force:
-        raise UserError(f"{out} already holds results.yml; pass --force to overwrite it or "
-                        "--out to choose another directory")
+def output_files(no_plots: bool) -> tuple[str, ...]:
+    """The files an evaluation writes into its output directory."""
+    return ("results.yml",) if no_plots else ("results.yml", "trajectories.png", "episode.gif")
+
+
+def check_output(out: Path, force: bool, no_plots: bool = False) -> None:
+    """:class:`UserError` if ``out`` is a file, holds one of the files this evaluation writes
+    (:func:`output_files`) and ``force`` is not set, or cannot be written; nothing is
+    created."""
+    check_output_dir(out, output_files(no_plots), force)
 
 
 def main(argv: Sequence[str] | None = None) -> dict[str, float]:
@@ -280,6 +287,8 @@ def main(argv: Sequence[str] | None = None) -> dict[str, float]:
     if unknown:
         raise UserError(f"--ignore-signature: unknown field(s) {', '.join(unknown)}; fields: "
                         + ", ".join(SIGNATURE_FIELDS))
+    if args.out is not None:  # before the model is loaded
+        check_output(Path(args.out), args.force, args.no_plots)
     import torch
 
     torch.set_num_threads(args.torch_threads)
@@ -294,7 +303,7 @@ def main(argv: Sequence[str] | None = None) -> dict[str, float]:
     if args.gif_episode is not None and not 0 <= args.gif_episode < n_episodes:
         raise UserError("--gif-episode must index one of the episodes")
     out = output_dir(args, env_id, policy)
-    check_output(out, args.force)
+    check_output(out, args.force, args.no_plots)
     env = make_env(env_id, kwargs, wrapper)
     if goals is not None:
         check_goal_range(env, goals)

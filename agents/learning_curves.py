@@ -20,7 +20,7 @@ from pathlib import Path
 
 import numpy as np
 
-from agents.common.cli import ArgumentParser, UserError, run_cli
+from agents.common.cli import ArgumentParser, UserError, check_output_file, run_cli
 
 
 def read_curve(run: Path) -> tuple[str, np.ndarray, np.ndarray]:
@@ -78,8 +78,7 @@ def parse_args(argv: Sequence[str] | None = None) -> argparse.Namespace:
     out = Path(args.out)
     if out.suffix.lower() != ".png":
         raise UserError(f"--out must name a .png file (got {out})")
-    if out.exists() and not args.force:
-        raise UserError(f"{out} exists (pass --force to overwrite)")
+    check_output_file(out, args.force)
     return args
 
 

@@ -36,7 +36,14 @@ from typing import Any
 
 import numpy as np
 
-from agents.common.cli import SEED_MAX, ArgumentParser, UserError, check_range, run_cli
+from agents.common.cli import (
+    SEED_MAX,
+    ArgumentParser,
+    UserError,
+    check_output_dir,
+    check_range,
+    run_cli,
+)
 from agents.common.env_factory import make_env
 from agents.common.metrics import SUCCESS_TOLERANCE
 from agents.play.choice import PolicyChoice, build
@@ -218,14 +225,9 @@ def summary_line(label: str, outcome: np.ndarray, box: np.ndarray, seconds: floa
 
 
 def check_output(out: Path, force: bool) -> None:
-    """:class:`UserError` if ``out`` is a file or holds one of :data:`OUTPUTS` (without
-    ``force``)."""
-    if out.exists() and not out.is_dir():
-        raise UserError(f"--out {out} exists and is not a directory")
-    found = [f for f in OUTPUTS if (out / f).exists()]
-    if found and not force:
-        raise UserError(f"{out} already holds {', '.join(found)}; pass --force to overwrite "
-                        "or --out to choose another directory")
+    """:class:`UserError` if ``out`` is a file, holds one of :data:`OUTPUTS` (without
+    ``force``) or cannot be written; nothing is created."""
+    check_output_dir(out, OUTPUTS, force)
 
 
 def main(argv: Sequence[str] | None = None) -> dict[str, Any]:

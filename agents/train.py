@@ -28,14 +28,17 @@ the highest success rate, ties broken by the lower median final error.
 
 from __future__ import annotations
 
+import contextlib
+import signal
+import sys
 import time
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
 from pathlib import Path
 from typing import Any
 
-from stable_baselines3.common.callbacks import CheckpointCallback, EvalCallback
+from stable_baselines3.common.callbacks import BaseCallback, CheckpointCallback, EvalCallback
 
-from agents.common.cli import UserError, run_cli
+from agents.common.cli import UserError, check_run_location, run_cli
 from agents.common.env_factory import make_env, task_targets
 from agents.common.metrics import error_score, final_errors, summarize
 from agents.runs.layout import BEST_MODEL
@@ -123,9 +126,48 @@ class Checkpoints(CheckpointCallback):
         return keep_going
 
 
+class StopOnSignal(BaseCallback):
+    """Stops ``learn()`` cleanly on SIGINT or SIGTERM.
+
+    While :meth:`installed` is active, the two signals only set :attr:`signal_name`; the
+    next ``_on_step`` (between env steps, never inside the physics kernel or a file write)
+    returns False, SB3 leaves ``learn()``, and the caller saves and finalises the run. The
+    previous handlers are restored on leaving the context."""
+
+    SIGNALS = (signal.SIGINT, signal.SIGTERM)
+
+    def __init__(self) -> None:
+        super().__init__()
+        #: Name of the signal received (``"SIGINT"``, ``"SIGTERM"``), None if none.
+        self.signal_name: str | None = None
+
+    def _handle(self, signum: int, frame: Any) -> None:
+        if self.signal_name is None:
+            print(f"{signal.Signals(signum).name}: training stops after this step; the run "
+                  "is saved", file=sys.stderr, flush=True)
+        self.signal_name = signal.Signals(signum).name
+
+    @contextlib.contextmanager
+    def installed(self) -> Iterator[StopOnSignal]:
+        """Install the flag-setting handlers (main thread only) for the ``with`` block."""
+        previous = {s: signal.signal(s, self._handle) for s in self.SIGNALS}
+        try:
+            yield self
+        finally:
+            for s, handler in previous.items():
+                signal.signal(s, handler)
+
+    def _on_step(self) -> bool:
+        return self.signal_name is None
+
+
 def train(config: RunConfig, run_dir: Path, model: Any, eval_env: Any,
-          progress_bar: bool = True) -> Any:
-    """Learn (validation and checkpoints as configured), save the run; returns the model."""
+          progress_bar: bool = True, stop: StopOnSignal | None = None) -> Any:
+    """Learn (validation and checkpoints as configured), save the run; returns the model.
+
+    ``stop`` (its handlers installed by the caller) ends ``learn()`` on SIGINT/SIGTERM; the
+    run is then saved as at the end (final zip, statistics, ``config.yml`` with checksums)
+    with ``interrupted: true`` in its outcome."""
     from stable_baselines3.common.logger import configure
 
     hp, rec = config.hyperparams, config.record
@@ -141,7 +183,8 @@ def train(config: RunConfig, run_dir: Path, model: Any, eval_env: Any,
         eval_freq=max(ev.eval_freq // n_envs, 1) if ev.eval_freq > 0 else 0,
         log_path=str(run_dir), deterministic=True, verbose=1,
     )
-    callbacks: list[Any] = [evaluation]
+    callbacks: list[Any] = [] if stop is None else [stop]
+    callbacks.append(evaluation)
     if rec.save_freq > 0:
         callbacks.append(Checkpoints(save_freq=max(rec.save_freq // n_envs, 1),
                                      save_path=str(run_dir), name_prefix="rl_model",
@@ -151,8 +194,12 @@ def train(config: RunConfig, run_dir: Path, model: Any, eval_env: Any,
     try:
         model.learn(total_timesteps=config.n_timesteps, callback=callbacks,
                     progress_bar=progress_bar)
-    except KeyboardInterrupt:
+    except KeyboardInterrupt:  # raised by code that ignores the handlers (e.g. a worker)
         interrupted = True
+    if stop is not None and stop.signal_name is not None:
+        interrupted = True
+        print(f"{stop.signal_name}: stopped at {model.num_timesteps} steps; saving the run",
+              flush=True)
     model.save(run_dir / f"{env_id}.zip")
     vecnorm = model.get_vec_normalize_env()
     if vecnorm is not None:
@@ -175,10 +222,17 @@ def train(config: RunConfig, run_dir: Path, model: Any, eval_env: Any,
 def main(argv: Sequence[str] | None = None) -> Path:
     """CLI entry point; returns the run directory.
 
-    Every argument and hyper-parameter is validated (envs, wrappers, algorithm built) before
-    the run directory is created: a rejected input leaves nothing behind.
+    Every argument and hyper-parameter is validated (output location, envs, wrappers,
+    algorithm built) before the run directory is created: a rejected input leaves nothing
+    behind. The log folder must be writable and outside the package's model folder. From the
+    creation of the run directory on, SIGINT and SIGTERM stop training between steps and the
+    run is saved and finalised (:class:`StopOnSignal`).
     """
     args = parse_args(argv)
+    check_run_location(args.log_folder)
+    run_dir = next_run_dir(Path(args.log_folder), args.algo, args.env, args.run_name)
+    if run_dir.exists():
+        raise UserError(f"run directory {run_dir} exists (choose another --run-name)")
     config = resolve_config(args)
     hp, rec = config.hyperparams, config.record
     probe = make_env(args.env, config.env_kwargs, config.env_wrapper)
@@ -187,21 +241,24 @@ def main(argv: Sequence[str] | None = None) -> Path:
     model, eval_env = build(config, verbose=args.verbose)
     if args.trained_agent is not None:
         start_from(model, args.trained_agent, rec)
-    run_dir = next_run_dir(Path(args.log_folder), args.algo, args.env, args.run_name)
-    if run_dir.exists():
+    if run_dir.exists():  # created meanwhile by another process
         raise UserError(f"run directory {run_dir} exists (choose another --run-name)")
-    (run_dir / args.env).mkdir(parents=True)
-    write_args(run_dir, args.env, {
-        "algo": args.algo, "seed": args.seed, "conf_file": rec.conf_file,
-        "n_timesteps": config.n_timesteps, "device": args.device,
-        "num_threads": args.torch_threads, "vec_env": rec.vec_env,
-        "eval_freq": args.eval_freq, "eval_episodes": args.eval_episodes,
-        "save_freq": args.save_freq, "log_folder": str(args.log_folder)})
-    write_run_config(run_dir, args.env, hp, rec)  # rewritten at the end (results, checksums)
-    print(f"run directory: {run_dir}")
-    train(config, run_dir, model, eval_env, progress_bar=not args.no_progress_bar)
+    stop = StopOnSignal()
+    with stop.installed():
+        (run_dir / args.env).mkdir(parents=True)
+        write_args(run_dir, args.env, {
+            "algo": args.algo, "seed": args.seed, "conf_file": rec.conf_file,
+            "n_timesteps": config.n_timesteps, "device": args.device,
+            "num_threads": args.torch_threads, "vec_env": rec.vec_env,
+            "eval_freq": args.eval_freq, "eval_episodes": args.eval_episodes,
+            "save_freq": args.save_freq, "log_folder": str(args.log_folder)})
+        write_run_config(run_dir, args.env, hp, rec)  # rewritten at the end (results, sha256)
+        print(f"run directory: {run_dir}", flush=True)
+        train(config, run_dir, model, eval_env, progress_bar=not args.no_progress_bar,
+              stop=stop)
     assert isinstance(rec.outcome, TrainOutcome)
-    print(f"saved {run_dir / (args.env + '.zip')} ({rec.outcome.wall_time_s} s)")
+    what = f"interrupted ({stop.signal_name})" if rec.outcome.interrupted else "saved"
+    print(f"{what}: {run_dir / (args.env + '.zip')} ({rec.outcome.wall_time_s} s)")
     return run_dir
 
 

@@ -30,6 +30,7 @@ from typing import Any
 
 import numpy as np
 
+from softhand_env.cli import ArgumentParser, CliError, run_cli
 from softhand_env.envs.keys import action_from_keys
 from softhand_env.figures.overlay import episode_caption, overlay_text
 
@@ -38,7 +39,7 @@ HELP_LINE = "a/d: left tip   j/l: right tip   r: new episode   space: pause   es
 
 def parse_args(argv: Sequence[str] | None = None) -> argparse.Namespace:
     """Command-line arguments; out-of-range values exit with code 2 and name the option."""
-    p = argparse.ArgumentParser(prog="python -m softhand_env.play",
+    p = ArgumentParser(prog="python -m softhand_env.play",
                                 description=__doc__.split("\n\n")[0])
     p.add_argument("--env", default="SoftHandPose-v0", help="soft-hand env id")
     p.add_argument("--seed", type=int, default=None, help="seed of the first reset")
@@ -54,6 +55,8 @@ def parse_args(argv: Sequence[str] | None = None) -> argparse.Namespace:
         p.error(f"--speed must be in (0, 10] (got {args.speed})")
     if not 120 <= args.size <= 2000:
         p.error(f"--size must be in 120..2000 px (got {args.size})")
+    if args.seed is not None and not 0 <= args.seed <= 2**32 - 1:
+        p.error(f"--seed must be in [0, 2**32 - 1] (got {args.seed})")
     if args.max_frames is not None and args.max_frames < 1:
         p.error(f"--max-frames must be >= 1 (got {args.max_frames})")
     return args
@@ -168,26 +171,23 @@ class Teleop:
         self._pg.display.quit()
 
 
-def main(argv: Sequence[str] | None = None) -> int:
-    """CLI entry point; returns the exit code."""
+def _run(argv: Sequence[str] | None) -> int:
     args = parse_args(argv)
     import gymnasium as gym
 
     import softhand_env  # noqa: F401  (registers the ids)
 
-    try:
-        env = gym.make(args.env, render_mode="rgb_array", render_width=args.size,
-                       render_height=args.size, action_mode="delta",
-                       max_delta_deg=args.max_delta_deg)
-    except (ValueError, TypeError, gym.error.Error) as exc:
-        print(f"error: {exc}", file=sys.stderr)
-        return 2
+    ours = sorted(k for k in gym.registry if k.startswith("SoftHand"))
+    if args.env not in ours:  # never build another package's env
+        raise CliError(f"--env {args.env!r} is not a soft-hand env ({', '.join(ours)})")
+    env = gym.make(args.env, render_mode="rgb_array", render_width=args.size,
+                   render_height=args.size, action_mode="delta",
+                   max_delta_deg=args.max_delta_deg)
     try:
         import pygame  # noqa: F401
     except ModuleNotFoundError:
-        print("error: teleoperation needs pygame: pip install 'softhand-env[render]'",
-              file=sys.stderr)
-        return 2
+        env.close()
+        raise CliError("teleoperation needs pygame: pip install 'softhand-env[render]'") from None
     teleop = Teleop(env, seed=args.seed, speed=args.speed)
     try:
         summary = teleop.run(args.max_frames)
@@ -195,6 +195,12 @@ def main(argv: Sequence[str] | None = None) -> int:
         teleop.close()
     print(f"{summary['episodes']} episode(s), {summary['steps']} steps")
     return 0
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """CLI entry point; returns the exit code (0). A wrong input (argument, env id, keyword)
+    is one line on stderr and exit code 2 (:func:`softhand_env.cli.run_cli`)."""
+    return int(run_cli(_run, argv))
 
 
 if __name__ == "__main__":

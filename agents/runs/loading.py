@@ -126,8 +126,13 @@ def resolve_model(spec: str | Path) -> ModelRun:
 
     ``spec`` is a run directory (``<env id>.zip`` beside ``<env id>/config.yml``), a ``.zip``
     in one (final, ``best_model.zip`` or a checkpoint), or the env id of a shipped model.
+    A bare name that is both a shipped model and a local path is refused (``./name`` is the
+    local one).
     """
     p = Path(spec)
+    if p.exists() and str(spec) in shipped_models():  # a local path shadows a shipped id
+        raise UserError(f"{spec!r} names a shipped model and a local path; pass ./{spec} for "
+                        "the local one or rename it")
     if not p.exists() and "/" not in str(spec) and not str(spec).endswith(".zip"):
         shipped = shipped_models()
         if str(spec) not in shipped:

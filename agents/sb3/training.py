@@ -195,6 +195,39 @@ def resolve_config(args: TrainSettings, command: str = "agents.train") -> RunCon
     return RunConfig(hyperparams=hp, record=record)
 
 
+#: VecNormalize keywords a run config may set, and those that must be finite and > 0 (the
+#: rule the loader applies to saved statistics, :mod:`agents.runs.normalization`).
+NORMALIZE_KEYS = ("norm_obs", "norm_reward", "clip_obs", "clip_reward", "gamma", "epsilon",
+                  "norm_obs_keys")
+_POSITIVE = ("clip_obs", "clip_reward", "epsilon")
+
+
+def check_normalize(norm: dict[str, Any]) -> None:
+    """:class:`UserError` for a ``normalize`` mapping a saved run could not be loaded with:
+    an unknown key, ``clip_obs`` / ``clip_reward`` / ``epsilon`` not a finite number > 0,
+    ``gamma`` not in [0, 1], ``norm_obs`` / ``norm_reward`` not a bool."""
+    import math
+
+    unknown = sorted(str(k)[:40] for k in norm if k not in NORMALIZE_KEYS)
+    if unknown:
+        raise UserError(f"normalize: unknown key(s) {', '.join(unknown)} (known: "
+                        f"{', '.join(NORMALIZE_KEYS)})")
+    for key in _POSITIVE:
+        if key in norm:
+            v = norm[key]
+            if (isinstance(v, bool) or not isinstance(v, (int, float))
+                    or not math.isfinite(v) or v <= 0):
+                raise UserError(f"normalize: {key} must be a finite number > 0 "
+                                f"(got {str(v)[:40]})")
+    if "gamma" in norm:
+        g = norm["gamma"]
+        if isinstance(g, bool) or not isinstance(g, (int, float)) or not 0 <= g <= 1:
+            raise UserError(f"normalize: gamma must be a number in [0, 1] (got {str(g)[:40]})")
+    for key in ("norm_obs", "norm_reward"):
+        if key in norm and not isinstance(norm[key], bool):
+            raise UserError(f"normalize: {key} must be true or false (got {str(norm[key])[:40]})")
+
+
 def build(config: RunConfig, verbose: int = 1) -> tuple[Any, Any]:
     """The algorithm (on its training envs) and the validation env of a run config.
 
@@ -209,6 +242,8 @@ def build(config: RunConfig, verbose: int = 1) -> tuple[Any, Any]:
     env_id, algo, seed = rec.env_id, rec.algo, rec.seed
     kwargs = algo_kwargs(algo, hp)
     norm = normalize_kwargs(config.normalize)
+    if norm is not None:
+        check_normalize(norm)
     wrapper = config.env_wrapper
     env = make_sb3_vec_env(env_id, config.n_envs, seed, config.env_kwargs, rec.vec_env,
                            env_wrapper=wrapper)

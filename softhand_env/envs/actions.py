@@ -125,7 +125,9 @@ class ActionMap:
 def action_array(action: Any, shape: tuple[int, ...]) -> np.ndarray:
     """``action`` as a float32/float64 array of ``shape``, or an error naming ``action``.
 
-    Accepted: real numeric arrays or sequences (bool, int, float kinds). Raises ``TypeError``
+    Accepted: real numeric arrays or sequences (bool, int, float kinds), and objects NumPy reads
+    as one (a CPU torch tensor is converted; one that requires grad or lives on a GPU is a
+    ``TypeError``). Raises ``TypeError``
     for anything else (complex, strings, dates, objects, masked arrays, dicts, ints too large
     for a float) and ``ValueError`` for a wrong shape; NaN/inf are rejected by
     :meth:`ActionMap.setpoints`.
@@ -133,7 +135,15 @@ def action_array(action: Any, shape: tuple[int, ...]) -> np.ndarray:
     if isinstance(action, np.ma.MaskedArray):
         raise TypeError("action must be a plain array of real numbers (got a masked array)")
     try:
+        # a CPU tensor (torch, jax, ...) converts through __array__; one that requires grad or
+        # lives on a GPU raises RuntimeError/TypeError there: both are the caller's to convert
         a = np.asarray(action)
+    except RuntimeError:
+        raise TypeError(
+            f"action must be an array of real numbers; a {type(action).__name__} that cannot "
+            "be read as one (e.g. a tensor that requires grad or lives on a GPU: pass "
+            "tensor.detach().cpu().numpy())"
+        ) from None
     except (TypeError, ValueError, OverflowError):
         raise TypeError(
             f"action must be an array of real numbers (got {type(action).__name__})"

@@ -27,6 +27,7 @@ from __future__ import annotations
 
 import inspect
 import math
+import reprlib
 from collections.abc import Callable, Mapping
 from dataclasses import MISSING, dataclass, field, fields, replace
 from typing import Any
@@ -148,15 +149,30 @@ class Keyword:
                                  f"(got {value!r})")
 
     def _check_pair(self, name: str, value: Any) -> None:
+        # a str is a sequence too ("66" would read as (6, 6)); so are str items ("6", "6")
+        items = list(value) if isinstance(value, (list, tuple, np.ndarray)) else None
+        if (items is None or len(items) != 2 or (isinstance(value, np.ndarray)
+                                                 and value.ndim != 1)
+                or not all(isinstance(v, (int, float, np.integer, np.floating))
+                           and not isinstance(v, (bool, np.bool_)) for v in items)):
+            raise ValueError(f"{name} must be a pair of numbers, a tuple or list of two "
+                             f"(got {_short(value)})")
         try:
-            a, b = (float(v) for v in value)
-        except (TypeError, ValueError):
-            raise ValueError(f"{name} must be a pair of numbers (got {value!r})") from None
+            a, b = (float(v) for v in items)
+        except OverflowError:  # an int beyond a float's range
+            raise ValueError(f"{name} must be finite (got {_short(value)})") from None
         if not (math.isfinite(a) and math.isfinite(b)):
             raise ValueError(f"{name} must be finite (got {value!r})")
         if not (self._in_range(a) and self._in_range(b)):
             raise ValueError(f"{name} must be a pair of numbers in {self.range_text} "
                              f"(got {value!r})")
+
+
+def _short(value: Any, limit: int = 80) -> str:
+    """``repr(value)`` cut to ``limit`` characters (an error message never prints an
+    unbounded value)."""
+    text = reprlib.repr(value)
+    return text if len(text) <= limit else text[:limit - 3] + "..."
 
 
 _KEY = "keyword"
@@ -313,6 +329,34 @@ def check_options(options: EnvOptions) -> None:
     """The plain checks of every keyword of ``options``, in signature order."""
     for name, spec in KEYWORDS.items():
         spec.check(name, getattr(options, name))
+
+
+#: Largest ``num_envs`` of the vector env and largest ``max_episode_steps`` of either env.
+MAX_NUM_ENVS = 65_536
+MAX_EPISODE_STEPS = 10**7
+
+
+def check_seed(seed: Any, name: str = "seed") -> int | None:
+    """A ``reset`` seed as a Python int (None stays None), the same rule for the single and
+    the vector env: an int of Python or NumPy (not a bool), ``>= 0``. ``TypeError`` for
+    another type, ``ValueError`` for a negative value."""
+    if seed is None:
+        return None
+    if isinstance(seed, (bool, np.bool_)) or not isinstance(seed, (int, np.integer)):
+        raise TypeError(f"{name} must be None or an int >= 0 (got {_short(seed)}, "
+                        f"{type(seed).__name__})")
+    if seed < 0:
+        raise ValueError(f"{name} must be >= 0 (got {_short(seed)})")
+    return int(seed)
+
+
+def check_count(name: str, value: Any, high: int) -> int:
+    """``value`` as an int in ``[1, high]`` (``num_envs``, ``max_episode_steps``): an int of
+    Python or NumPy, not a bool; ``ValueError`` naming ``name`` otherwise."""
+    if (isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, np.integer))
+            or not 1 <= value <= high):
+        raise ValueError(f"{name} must be an int in [1, {high}] (got {_short(value)})")
+    return int(value)
 
 
 def keyword_signature(function: Callable[..., Any]) -> inspect.Signature:

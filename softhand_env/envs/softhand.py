@@ -10,7 +10,7 @@ import numpy as np
 from softhand_env.envs.actions import action_array
 from softhand_env.envs.config import RENDER_MODES, build_config
 from softhand_env.envs.observation import observe_rows
-from softhand_env.envs.options import KEYWORDS, EnvOptions, arguments_table
+from softhand_env.envs.options import KEYWORDS, EnvOptions, arguments_table, check_seed
 from softhand_env.envs.sensors import SensorSpec
 from softhand_env.envs.transition import EpisodeBatch, reset_goal
 from softhand_env.physics.hand import HandPhysics
@@ -369,7 +369,7 @@ class SoftHandEnv(gym.Env):
     def reset(
         self, *, seed: int | None = None, options: dict[str, Any] | None = None
     ) -> tuple[np.ndarray, dict[str, Any]]:
-        super().reset(seed=seed)
+        super().reset(seed=check_seed(seed))
         goal = reset_goal(options, ("goal",))
         batch = self._batch
         batch.start(0, self.np_random, goal)

@@ -25,7 +25,15 @@ from gymnasium.vector.utils import batch_space
 
 from softhand_env.envs.actions import action_array
 from softhand_env.envs.config import build_config
-from softhand_env.envs.options import EnvOptions, arguments_table, keyword_signature
+from softhand_env.envs.options import (
+    MAX_EPISODE_STEPS,
+    MAX_NUM_ENVS,
+    EnvOptions,
+    arguments_table,
+    check_count,
+    check_seed,
+    keyword_signature,
+)
 from softhand_env.envs.task_configs import load_task_config
 from softhand_env.envs.transition import EpisodeBatch, reset_goal
 
@@ -39,10 +47,11 @@ class SoftHandVectorEnv(VectorEnv):
     Parameters
     ----------
     num_envs : int
-        Number of environments N.
+        Number of environments N, an int in [1, 65536] (``MAX_NUM_ENVS``).
     max_episode_steps : int, optional
-        Per-environment time limit in control steps (truncation); ``None`` uses the task's
-        ``configs/tasks/<task>.yaml`` value (``make_vec`` passes the registered one).
+        Per-environment time limit in control steps (truncation), an int in [1, 1e7]
+        (``MAX_EPISODE_STEPS``); ``None`` uses the task's ``configs/tasks/<task>.yaml`` value
+        (``make_vec`` passes the registered one).
     autoreset_mode : AutoresetMode or str
         ``"NextStep"`` (default), ``"SameStep"`` or ``"Disabled"``.
     **kwargs
@@ -74,15 +83,11 @@ class SoftHandVectorEnv(VectorEnv):
         cfg = build_config(options)
         #: The keywords of these environments (:class:`~softhand_env.envs.options.EnvOptions`).
         self.options = options
-        if isinstance(num_envs, bool) or not isinstance(num_envs, (int, np.integer)):
-            raise ValueError(f"num_envs must be an int >= 1 (got {num_envs!r})")
-        if num_envs < 1:
-            raise ValueError(f"num_envs must be >= 1 (got {num_envs!r})")
+        n = check_count("num_envs", num_envs, MAX_NUM_ENVS)
         if max_episode_steps is None:
             max_episode_steps = load_task_config(options.task)["max_episode_steps"]
-        if int(max_episode_steps) < 1:
-            raise ValueError(f"max_episode_steps must be >= 1 (got {max_episode_steps!r})")
-        n = int(num_envs)
+        max_episode_steps = check_count("max_episode_steps", max_episode_steps,
+                                        MAX_EPISODE_STEPS)
         self.config = cfg
         self.task = cfg.task
         self.num_envs = n
@@ -123,20 +128,24 @@ class SoftHandVectorEnv(VectorEnv):
     ) -> tuple[np.ndarray, dict[str, Any]]:
         """Reset all environments, or those of ``options["reset_mask"]`` (bool (N,)).
 
-        ``seed``: None (keep each generator; seed fresh ones from entropy), an int s (env i
-        gets s + i) or a list of N ints/None. ``options["goal"]``: a goal (goal_dim,) (SI) for
-        every environment reset, or (N, goal_dim) one per environment. Other option keys raise
+        ``seed``: None (keep each generator; seed fresh ones from entropy), an int s >= 0
+        (env i gets s + i) or a list of N ints/None (the single env's rule,
+        :func:`~softhand_env.envs.options.check_seed`). ``options["goal"]``: a goal
+        (goal_dim,) (SI) for every environment reset, or (N, goal_dim) one per environment.
+        Other option keys raise
         ``ValueError``; ``step`` before every environment was reset raises ``ResetNeeded``.
         """
         n = self.num_envs
         if seed is None:
             seeds: list[int | None] = [None] * n
-        elif isinstance(seed, (int, np.integer)):
-            seeds = [int(seed) + i for i in range(n)]
-        else:
-            seeds = list(seed)
+        elif isinstance(seed, (list, tuple, np.ndarray)):
+            seeds = [check_seed(s, f"seed[{i}]") for i, s in enumerate(seed)]
             if len(seeds) != n:
                 raise ValueError(f"seed list must have length num_envs={n} (got {len(seeds)})")
+        else:
+            first = check_seed(seed)
+            assert first is not None
+            seeds = [first + i for i in range(n)]
         goal = reset_goal(options, ("goal", "reset_mask"))
         mask = np.ones(n, dtype=bool)
         if options is not None and "reset_mask" in options:

@@ -7,7 +7,8 @@ Usage::
     python -m softhand_env.figures quasistatic --out DIR
 
 Each subcommand lives in its own module ``softhand_env.figures.<name>`` that defines
-``add_arguments(parser)`` and ``run(args) -> list[pathlib.Path]`` (the files written).
+``add_arguments(parser)``, ``run(args) -> list[pathlib.Path]`` (the files written) and
+``OUTPUTS`` (their names: an earlier run's are not overwritten without ``--force``).
 Modules are imported lazily so that ``--help`` stays fast and matplotlib is only loaded
 when a figure is drawn. One helper module is not a subcommand: ``overlay`` draws text (time,
 goal, object pose) on rendered frames (the evaluated-episode plots that use it are
@@ -16,10 +17,10 @@ goal, object pose) on rendered frames (the evaluated-episode plots that use it a
 
 from __future__ import annotations
 
-import argparse
 import importlib
-import sys
 from collections.abc import Sequence
+
+from softhand_env.cli import ArgumentParser, check_output_dir, run_cli
 
 #: subcommand name -> (module, one-line help)
 SUBCOMMANDS: dict[str, tuple[str, str]] = {
@@ -29,22 +30,28 @@ SUBCOMMANDS: dict[str, tuple[str, str]] = {
 }
 
 
-def main(argv: Sequence[str] | None = None) -> int:
-    """Parse ``argv`` and run one figure subcommand; returns the process exit code."""
-    parser = argparse.ArgumentParser(prog="python -m softhand_env.figures", description=__doc__)
+def _run(argv: Sequence[str] | None) -> int:
+    parser = ArgumentParser(prog="python -m softhand_env.figures", description=__doc__)
     sub = parser.add_subparsers(dest="command", required=True)
     for name, (module_name, help_text) in SUBCOMMANDS.items():
         p = sub.add_parser(name, help=help_text)
         p.add_argument("--out", default=f"out/{name}", help="output directory (created)")
+        p.add_argument("--force", action="store_true",
+                       help="overwrite the figures of an earlier run in --out")
         module = importlib.import_module(module_name)
         module.add_arguments(p)
-        p.set_defaults(_run=module.run)
+        p.set_defaults(_run=module.run, _outputs=module.OUTPUTS)
     args = parser.parse_args(argv)
-    try:
-        written = args._run(args)
-    except ValueError as exc:
-        print(f"error: {exc}", file=sys.stderr)
-        return 2
+    check_output_dir(args.out, args._outputs, args.force)
+    written = args._run(args)
     for path in written:
         print(path)
     return 0
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Parse ``argv`` and run one figure subcommand; returns the process exit code (0). A
+    wrong input (an existing figure in ``--out`` without ``--force``, an unwritable ``--out``,
+    a bad value) is one line on stderr and exit code 2, checked before any figure is drawn
+    (:func:`softhand_env.cli.run_cli`)."""
+    return int(run_cli(_run, argv))

@@ -31,6 +31,11 @@ ANGLES_DEG = (0.0, 10.0, 20.0, 30.0)
 MARKERS = ("o", "s", "^", "D")
 
 
+#: The files :func:`run` writes into ``--out``.
+OUTPUTS = ("fig2_6_stiffness.png", "fig2_7_force_energy.png", "fig2_11_force_vs_angle.png",
+           "fig3_3_nonlinear_force.png")
+
+
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Options of the ``contact`` subcommand."""
     parser.add_argument("--dpi", type=int, default=150, help="PNG resolution (default 150)")

@@ -38,6 +38,10 @@ ROUNDOFF_FLOOR = 1e-16
 PAPER_LEVEL_CH, PAPER_LEVEL_CN = 1e-8, 1e-6
 
 
+#: The files :func:`run` writes into ``--out``.
+OUTPUTS = ("trajectory.csv", "fig5_5_motion.png", "fig5_6_constraints.png")
+
+
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--duration", type=float, default=1.0, help="seconds per motion (1.0)")
     parser.add_argument("--config", default="paper_ch5", help="hand config name or YAML path")

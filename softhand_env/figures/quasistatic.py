@@ -38,6 +38,10 @@ CAPTION = (
 )
 
 
+#: The files :func:`run` writes into ``--out``.
+OUTPUTS = ("fig4_8_quasistatic.png", "fig4_9_paths.png")
+
+
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Register the options of the ``quasistatic`` figure command."""
     parser.add_argument("--step-deg", type=float, default=0.1,

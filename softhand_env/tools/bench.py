@@ -12,7 +12,6 @@ period at dt = 0.1 ms): the physics ceiling of the native vector environment.
 
 from __future__ import annotations
 
-import argparse
 import os
 import time
 from collections.abc import Callable, Sequence
@@ -20,6 +19,7 @@ from collections.abc import Callable, Sequence
 import numba
 import numpy as np
 
+from softhand_env.cli import ArgumentParser, check_int, run_cli
 from softhand_env.physics import kernel, model
 from softhand_env.physics.params import HandParams
 from softhand_env.physics.reference import advance_reference
@@ -42,7 +42,12 @@ def grasp_state(params: HandParams) -> np.ndarray:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(prog="python -m softhand_env.tools.bench", description=__doc__)
+    """Command-line entry point; returns the exit code (a wrong argument: one line, exit 2)."""
+    return int(run_cli(_run, argv))
+
+
+def _run(argv: Sequence[str] | None) -> int:
+    parser = ArgumentParser(prog="python -m softhand_env.tools.bench", description=__doc__)
     parser.add_argument("--substeps", type=int, default=20000, help="substeps per timing")
     parser.add_argument("--repeat", type=int, default=5)
     parser.add_argument("--batch", type=int, nargs="+", default=[1, 8, 64, 512, 1024, 8192])
@@ -50,7 +55,14 @@ def main(argv: Sequence[str] | None = None) -> int:
                         help="RK4 substeps per environment step (env steps/s column)")
     parser.add_argument("--threads", type=int, default=None, help="numba threads")
     args = parser.parse_args(argv)
+    check_int("--substeps", args.substeps, 10, 10**9)
+    check_int("--repeat", args.repeat, 1, 1000)
+    check_int("--env-substeps", args.env_substeps, 1, 10**6)
+    for n in args.batch:
+        check_int("--batch", n, 1, 65_536)
     if args.threads is not None:
+        check_int("--threads", args.threads, 1,
+                  numba.config.NUMBA_NUM_THREADS)  # type: ignore[attr-defined]
         numba.set_num_threads(args.threads)
     params = HandParams()
     prm = model.pack_params(params)

@@ -29,14 +29,14 @@ soft hand's.
 
 from __future__ import annotations
 
-import argparse
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from typing import Any
 
 import numpy as np
 
 import softhand_env  # noqa: F401  (registers the environments)
+from softhand_env.cli import ArgumentParser, CliError, check_int, run_cli
 
 
 def _best(run: Callable[[], float], repeats: int) -> float:
@@ -182,7 +182,14 @@ def _print_comparison(steps: int, n_vec: int, repeats: int, mujoco_steps: int) -
 
 
 def main(argv: list[str] | None = None) -> None:
-    parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    """Command-line entry point; prints the rates (a wrong argument or env id: one line on
+    stderr, exit code 2, before any timing)."""
+    run_cli(_run, argv)
+
+
+def _run(argv: Sequence[str] | None) -> None:
+    parser = ArgumentParser(prog="python -m softhand_env.tools.bench_env",
+                            description=__doc__.split("\n")[0])
     parser.add_argument("--id", default="SoftHandReorient-v0", help="environment id")
     parser.add_argument("--sizes", type=int, nargs="+", default=[8, 64, 512], help="values of N")
     parser.add_argument("--env-steps", type=int, default=4096,
@@ -204,6 +211,17 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("--no-compare", action="store_true",
                         help="skip the integrator comparison")
     args = parser.parse_args(argv)
+    for n in args.sizes:
+        check_int("--sizes", n, 1, 65_536)
+    check_int("--env-steps", args.env_steps, 1, 10**9)
+    check_int("--repeats", args.repeats, 1, 1000)
+    check_int("--async-max", args.async_max, 0, 1024)
+    if args.episode_steps is not None:
+        check_int("--episode-steps", args.episode_steps, 1, 10**7)
+    import gymnasium as gym
+
+    if args.id not in gym.registry or not args.id.startswith("SoftHand"):
+        raise CliError(f"--id {args.id!r} is not a soft-hand env id")
 
     import numba
 

@@ -7,11 +7,11 @@ separately and excluded from the timed runs.
 
 from __future__ import annotations
 
-import argparse
 import math
 import time
 from collections.abc import Sequence
 
+from softhand_env.cli import ArgumentParser, run_cli
 from softhand_env.physics.params import load_hand_params
 from softhand_env.quasistatic import PAPER_GRASP_ANGLES, handling_process, linear_path, solve_path
 
@@ -34,14 +34,18 @@ def bench(repeat: int = 3, step_deg: float = 0.1) -> dict[str, float]:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    """Command-line entry point; prints the timings."""
-    ap = argparse.ArgumentParser(prog="python -m softhand_env.tools.bench_quasistatic",
+    """Command-line entry point; prints the timings (a wrong argument: one line, exit 2)."""
+    return int(run_cli(_run, argv))
+
+
+def _run(argv: Sequence[str] | None) -> int:
+    ap = ArgumentParser(prog="python -m softhand_env.tools.bench_quasistatic",
                                  description=__doc__.splitlines()[0])
     ap.add_argument("--repeat", type=int, default=3, help="timed repetitions (default 3)")
     ap.add_argument("--step-deg", type=float, default=0.1, help="increment in deg (default 0.1)")
     args = ap.parse_args(argv)
-    if args.repeat < 1 or not 0 < args.step_deg <= 1:
-        ap.error("--repeat must be >= 1 and --step-deg in (0, 1]")
+    if not 1 <= args.repeat <= 1000 or not 0 < args.step_deg <= 1:
+        ap.error("--repeat must be in [1, 1000] and --step-deg in (0, 1]")
     r = bench(args.repeat, args.step_deg)
     print(f"kernel compile / cache load: {r['compile_s']:.2f} s")
     print(f"handling process, 5 grasp angles, {int(r['increments'])} increments at "

@@ -31,6 +31,7 @@ import resource
 import sys
 import time
 from collections import Counter
+from collections.abc import Sequence
 from dataclasses import asdict, dataclass, field
 
 import numpy as np
@@ -196,7 +197,7 @@ def _check_args(args: argparse.Namespace) -> None:
         raise _UsageError(f"--env-id {args.env_id!r} is not a soft-hand env ({', '.join(ours)})")
 
 
-def main(argv: list[str] | None = None) -> int:
+def main(argv: Sequence[str] | None = None) -> int:
     """Command-line entry point; returns the exit status: 0 soak passed, 1 soak failed (memory
     growth or non-finite values), 2 wrong arguments (one line on stderr, nothing run)."""
     parser = _Parser(description=__doc__.split("\n")[0])
@@ -229,4 +230,6 @@ def main(argv: list[str] | None = None) -> int:
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    from softhand_env.cli import run_cli
+
+    sys.exit(run_cli(main))

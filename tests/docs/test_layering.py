@@ -1,8 +1,9 @@
 """The import layering of docs/layout.md, read from the source with ``ast`` (nothing is run).
 
 (a) nothing in ``softhand_env`` imports ``agents``; (b) the layers of ``softhand_env`` import
-only downwards: physics <- quasistatic <- envs <- tools / figures (the package's face
-``softhand_env/__init__`` registers the environments: it sits with ``envs``; the top-level
+only downwards: physics <- quasistatic <- envs <- cli (the commands' entry point) <- tools /
+figures (the package's face ``softhand_env/__init__`` registers the environments: it sits
+with ``envs``; the top-level
 modules ``play``, ``contact``, ``bench``, ``bench_env`` sit above every layer); (c) no import
 cycle among the modules of ``agents`` (imports executed when a module is imported: module
 level, ``TYPE_CHECKING`` blocks and function bodies left out); (d) a command (a top-level
@@ -25,11 +26,11 @@ import pytest
 ROOT = Path(__file__).resolve().parents[2]
 #: Layer of each sub-package of softhand_env (lower imports nothing higher); siblings of one
 #: rank do not import each other.
-LAYERS = {"physics": 0, "quasistatic": 1, "envs": 2, "tools": 3, "figures": 3}
+LAYERS = {"physics": 0, "quasistatic": 1, "envs": 2, "cli": 3, "tools": 4, "figures": 4}
 #: Rank of the package's face (it imports the registered environments).
 FACE_RANK = 2
 #: Rank of the top-level modules of softhand_env (command, aliases): above every layer.
-TOP_RANK = 4
+TOP_RANK = 5
 #: Top-level modules of agents that are no commands: the published dotted paths of run
 #: configs' ``env_wrapper`` entries.
 AGENT_ALIASES = {"agents.time_feature", "agents.action_history", "agents.residual"}

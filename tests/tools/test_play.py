@@ -97,7 +97,9 @@ def test_play_cli_runs_headless_and_validates_options(capsys):
     with pytest.raises(SystemExit) as exc:
         main(["--speed", "0"])
     assert exc.value.code == 2
-    assert main(["--env", "NoSuchEnv-v0", "--max-frames", "1"]) == 2
+    with pytest.raises(SystemExit) as exc:
+        main(["--env", "NoSuchEnv-v0", "--max-frames", "1"])
+    assert exc.value.code == 2
 
 
 @pytest.mark.filterwarnings("ignore:.*matplotlib is not installed")
