@@ -139,6 +139,15 @@ def success_text(successes: int, n: int) -> str:
             f"{100 * low:.1f}-{100 * high:.1f} %)")
 
 
+def summary_success_text(summary: dict[str, float], key: str = "success_rate") -> str:
+    """:func:`success_text` of a summary's success rate ``key`` over its ``n_episodes``
+    (``"n/a (0 episodes)"`` for an empty goal set)."""
+    n = int(summary["n_episodes"])
+    if n < 1:
+        return "n/a (0 episodes)"
+    return success_text(success_count(summary[key], n), n)
+
+
 def error_score(summary: dict[str, float], targets: Sequence[str]) -> float:
     """Mean over targets of (median final error / success tolerance): lower is better."""
     vals = [summary[f"median_{ERROR_KEYS[t]}"] / SUCCESS_TOLERANCE[t][1] for t in targets]
