@@ -50,7 +50,7 @@ from agents.common.env_factory import goal_seeds, make_env, task_targets
 from agents.common.metrics import ERROR_KEYS, success_count, success_text
 from agents.play.choice import SCRIPTED, PolicyChoice, build
 from agents.play.rollout import EvaluationResults, evaluate, run_episode
-from agents.play.test_scores import is_shipped, plays_test_goals, record_score
+from agents.play.test_scores import is_shipped, plays_test_goals, read_scores, record_score
 from agents.plots.episodes import (
     choose_episode,
     evaluation_title,
@@ -287,6 +287,10 @@ def main(argv: Sequence[str] | None = None) -> dict[str, float]:
         check_goal_range(env, goals)
     if isinstance(policy, ModelPolicy):
         policy.check_env(env, args.ignore_signature)
+    counted = isinstance(policy, ModelPolicy) and plays_test_goals(args.seed, n_episodes,
+                                                                   args.goals)
+    if counted and not is_shipped(policy.run.run_dir):
+        read_scores(policy.run.run_dir)  # a corrupt record is refused before playing
     seeds = goal_seeds(args.seed, n_episodes)
     summary, episodes = evaluate(env, policy, seeds, targets, not args.stochastic, goals)
     if goals is None:
@@ -309,7 +313,7 @@ def main(argv: Sequence[str] | None = None) -> dict[str, float]:
                   goal=None if goals is None else goals[shown])
     env.close()
     print(f"wrote {out}/results.yml" + ("" if args.no_plots else ", trajectories.png, episode.gif"))
-    if isinstance(policy, ModelPolicy) and plays_test_goals(args.seed, n_episodes, args.goals):
+    if counted:
         count_test_score(policy, n_episodes, args.seed, summary)
     return summary
 

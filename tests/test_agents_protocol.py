@@ -177,3 +177,7 @@ def test_a_corrupt_score_record_is_refused(tmp_path):
     (run / TEST_SCORES_FILE).write_text("count: 3\nscores: []\n")
     with pytest.raises(evaluate.UserError, match="not a test-score record"):
         test_scores.record_score(run, "x.zip", 1, 10000, {"success_rate": 1.0})
+    with pytest.raises(evaluate.UserError, match="not a test-score record"):  # before playing
+        evaluate.main(["--model", str(run), "--n-episodes", "1", "--no-plots",
+                       "--out", str(tmp_path / "a")])
+    assert not (tmp_path / "a").exists()
