@@ -20,8 +20,8 @@ Sub-packages (libraries; no command imports another command's internals):
 * ``wrappers``: time feature, action history, the residual on the loop plan;
 * ``scripted``: the paper's motions, the handling process, the model-based baseline, the
   loop plan;
-* ``play``: the policy of a ``--model`` / ``--policy`` choice and the episode loops of
-  ``evaluate`` and ``pose_figures``;
+* ``play``: the policy of a ``--model`` / ``--policy`` choice, the episode loops of
+  ``evaluate`` and ``pose_figures`` and a run's count of scores on the test goals;
 * ``plots``: figures of evaluated episodes and of Pose policies.
 
 Data: ``configs/`` (hyper-parameter files, RL Zoo's dialect, keyed by env id) and ``models/``

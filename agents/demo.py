@@ -33,7 +33,7 @@ from agents.common.cli import (
     check_range,
     run_cli,
 )
-from agents.common.metrics import ERROR_KEYS
+from agents.common.metrics import ERROR_KEYS, summary_success_text
 from agents.runs.loading import resolve_model, shipped_models
 
 GOAL_ENVS = ("SoftHandReorient-v0", "SoftHandTranslate-v0", "SoftHandPose-v0")
@@ -88,7 +88,9 @@ def _row(env_id: str, agent: str, s: dict[str, float]) -> str:
             return "-"
         return f"{s[f'median_{key}']:.2f} / {s[f'max_{key}']:.2f} {unit}"
 
-    return (f"| {env_id} | {agent} | {100 * s['success_rate']:.0f} % | "
+    success = (summary_success_text(s) if "n_episodes" in s
+               else f"{100 * s['success_rate']:.0f} %")
+    return (f"| {env_id} | {agent} | {success} | "
             f"{fmt('x', 'mm')} | {fmt('theta', 'deg')} |")
 
 
@@ -110,7 +112,7 @@ def main(argv: Sequence[str] | None = None) -> list[str]:
                    *force])
     print("== chapter 4: quasi-static handling process")
     figures.main(["quasistatic", "--out", str(out / "chapter4"), *force])
-    rows = ["| task | agent | success | final \\|x\\| error (median / max) "
+    rows = ["| task | agent | success (95 % CI) | final \\|x\\| error (median / max) "
             "| final \\|θ\\| error (median / max) |",
             "| --- | --- | --- | --- | --- |"]
     common = ["--n-episodes", str(args.n_episodes), "--seed", str(args.seed), *force]

@@ -47,7 +47,13 @@ import numpy as np
 
 from agents.common.cli import UserError, check_range, check_run_location, run_cli
 from agents.common.env_factory import make_env, task_targets, wrapper_list
-from agents.common.metrics import error_score, final_errors, success_kwargs, summarize
+from agents.common.metrics import (
+    error_score,
+    final_errors,
+    success_kwargs,
+    summarize,
+    summary_success_text,
+)
 from agents.runs.loading import ModelPolicy
 from agents.runs.model_files import sha256
 from agents.runs.records import DistillOutcome, EvalSettings
@@ -418,7 +424,7 @@ def dagger(model: Any, teacher: ModelPolicy, env_id: str, kwargs: dict[str, Any]
                  "beta": beta, "loss": float(loss.detach()), "samples": n, **summary}
         curve.append(point)
         log(f"iteration {k}: beta {beta:.3f}, loss {point['loss']:.5f}, {n} samples, "
-            f"validation success {summary['success_rate']:.0%} ({point['wall_s']} s)")
+            f"validation success {summary_success_text(summary)} ({point['wall_s']} s)")
         rank = (summary["success_rate"], -error_score(summary, targets))
         if best is None or rank > best["rank"]:
             best = {"rank": rank, "iteration": k, "env_steps": steps, **summary}
@@ -491,7 +497,7 @@ def main(argv: Sequence[str] | None = None) -> Path:
     )
     write_run_config(run_dir, args.env, hp, rec)
     print(f"saved {run_dir / (args.env + '.zip')}: validation success "
-          f"{best['success_rate']:.0%} (iteration {best['iteration']}, {wall} s)")
+          f"{summary_success_text(best)} (iteration {best['iteration']}, {wall} s)")
     return run_dir
 
 

@@ -26,7 +26,14 @@ keyword otherwise is refused (:mod:`agents.runs.task_keywords`). ``--task-kwargs
 sets task keywords on purpose; the table and ``results.yml`` then say ``benchmark: false``
 and name them.
 
-Prints a table (success rate, final |x| and |theta| errors, return, episode length) and writes
+Every success rate is printed and recorded with its Wilson 95 % score interval; the table
+also gives the strict success rate (within 0.5 mm / 0.5 deg at the end of a successful
+episode). A model scored on the test goals (a seeded goal set that meets seeds 10000 + k) is
+counted in its run directory's ``test_scores.yml`` (count and every score; the shipped models
+are not written to: their test scores are documented in ``docs/results.md``). The protocol:
+choices on the validation goals (seed 5000 + k), the test goals once per final model.
+
+Prints a table (success rates, final |x| and |theta| errors, return, episode length) and writes
 to ``--out`` (default ``logs/eval/<env id>/<model run or policy>``; earlier results are never
 overwritten without ``--force``): ``results.yml`` (summary and every
 episode), ``trajectories.png`` (object x, theta and set-points over time) and ``episode.gif``
@@ -57,15 +64,17 @@ from agents.common.cli import (
     run_cli,
 )
 from agents.common.env_factory import goal_seeds, make_env, task_targets
-from agents.common.metrics import ERROR_KEYS
+from agents.common.metrics import ERROR_KEYS, success_count, success_text
 from agents.play.choice import SCRIPTED, PolicyChoice, build
 from agents.play.rollout import EvaluationResults, evaluate, run_episode
+from agents.play.test_scores import is_shipped, plays_test_goals, read_scores, record_score
 from agents.plots.episodes import (
     choose_episode,
     evaluation_title,
     gif_frames,
     plot_episodes,
 )
+from agents.runs.layout import TEST_SCORES_FILE
 from agents.runs.loading import ModelPolicy
 from softhand_env.envs.signature import SIGNATURE_FIELDS
 
@@ -162,9 +171,16 @@ def parse_args(argv: Sequence[str] | None = None) -> EvaluateSettings:
 
 # --------------------------------------------------------------------------------- output
 def format_table(title: str, summary: dict[str, float], targets: Sequence[str]) -> str:
-    """A plain-text table of a summary."""
-    rows = [("episodes", f"{summary['n_episodes']:d}"),
-            ("success rate", f"{100 * summary['success_rate']:.1f} %")]
+    """A plain-text table of a summary: each success rate with its count and Wilson 95 %
+    interval (:func:`~agents.common.metrics.success_text`), the strict one (0.5 mm / 0.5 deg)
+    when the summary has it."""
+    n = int(summary["n_episodes"])
+    rows = [("episodes", f"{n:d}"),
+            ("success rate (1 mm / 1 deg)",
+             success_text(success_count(summary["success_rate"], n), n))]
+    if "success_strict" in summary:
+        rows.append(("success rate, strict (0.5 mm / 0.5 deg)",
+                     success_text(success_count(summary["success_strict"], n), n)))
     units = {"x": ("|x err|", "mm"), "theta": ("|theta err|", "deg")}
     for t in targets:
         label, unit = units[t]
@@ -309,6 +325,10 @@ def main(argv: Sequence[str] | None = None) -> dict[str, float]:
         check_goal_range(env, goals)
     if isinstance(policy, ModelPolicy):
         policy.check_env(env, args.ignore_signature)
+    counted = isinstance(policy, ModelPolicy) and plays_test_goals(args.seed, n_episodes,
+                                                                   args.goals)
+    if counted and not is_shipped(policy.run.run_dir):
+        read_scores(policy.run.run_dir)  # a corrupt record is refused before playing
     seeds = goal_seeds(args.seed, n_episodes)
     summary, episodes = evaluate(env, policy, seeds, targets, not args.stochastic, goals)
     if goals is None:
@@ -336,7 +356,28 @@ def main(argv: Sequence[str] | None = None) -> dict[str, float]:
                   goal=None if goals is None else goals[shown])
     env.close()
     print(f"wrote {out}/results.yml" + ("" if args.no_plots else ", trajectories.png, episode.gif"))
+    if counted:
+        count_test_score(policy, n_episodes, args.seed, summary)
     return summary
+
+
+def count_test_score(policy: ModelPolicy, n_episodes: int, seed: int,
+                     summary: dict[str, float]) -> None:
+    """Record a test score in the model's run directory (``test_scores.yml``) and say so; a
+    shipped model is not written to."""
+    run_dir = policy.run.run_dir
+    if is_shipped(run_dir):
+        print("shipped model: its test scores are documented in docs/results.md "
+              "(nothing recorded)")
+        return
+    try:
+        data = record_score(run_dir, policy.run.zip_path.name, n_episodes, seed, summary)
+    except OSError as exc:
+        raise UserError(f"cannot record the test score in {run_dir / TEST_SCORES_FILE}: "
+                        f"{exc.strerror}") from None
+    times = "once" if data["count"] == 1 else f"{data['count']} times"
+    print(f"test goals: this run has been scored on them {times} "
+          f"({run_dir / TEST_SCORES_FILE}); choices belong on the validation goals (seed 5000)")
 
 
 if __name__ == "__main__":

@@ -40,7 +40,7 @@ from stable_baselines3.common.callbacks import BaseCallback, CheckpointCallback,
 
 from agents.common.cli import UserError, check_run_location, run_cli
 from agents.common.env_factory import make_env, task_targets
-from agents.common.metrics import error_score, final_errors, summarize
+from agents.common.metrics import error_score, final_errors, summarize, summary_success_text
 from agents.runs.layout import BEST_MODEL
 from agents.runs.normalization import save_stats
 from agents.runs.records import RunConfig, TrainOutcome
@@ -104,7 +104,7 @@ class HeldOutEvalCallback(EvalCallback):
             self.logger.record("eval/best_success_rate", summary["success_rate"])
         if self.verbose:
             errs = ", ".join(f"{k} {v:.3g}" for k, v in summary.items() if "median" in k)
-            print(f"validation: success {summary['success_rate']:.0%}, {errs}")
+            print(f"validation: success {summary_success_text(summary)}, {errs}")
         self.logger.dump(self.num_timesteps)
         if self.stop_success is not None and summary["success_rate"] >= self.stop_success:
             self.stopped_at = int(self.num_timesteps)

@@ -16,7 +16,13 @@ from typing import Any
 import numpy as np
 
 from agents.common.cli import UserError
-from agents.common.metrics import final_errors, summarize
+from agents.common.metrics import (
+    final_errors,
+    strict_success,
+    success_count,
+    summarize,
+    wilson_interval,
+)
 
 
 def run_episode(
@@ -74,12 +80,16 @@ def evaluate(
     goals: Sequence[Sequence[float]] | None = None,
 ) -> tuple[dict[str, float], list[dict[str, Any]]]:
     """Play every goal of ``seeds`` (or episode k: ``seeds[k]`` with ``goals[k]``); returns the
-    summary and the episode records."""
+    summary and the episode records. Besides :func:`~agents.common.metrics.summarize`'s keys the
+    summary holds ``success_strict`` (the rate of :func:`~agents.common.metrics.strict_success`,
+    0.5 mm / 0.5 deg), ``n_failures`` and ``max_friction_ratio``; each record its
+    ``errors`` and ``success_strict``."""
     episodes = []
     for k, seed in enumerate(seeds):
         ep = run_episode(env, policy, seed, deterministic, goal=None if goals is None else goals[k])
         info = {"object_pose": ep["final_pose"], "goal": ep["goal"]}
         ep["errors"] = final_errors(info, targets)
+        ep["success_strict"] = strict_success(ep["success"], ep["errors"], targets)
         episodes.append(ep)
     summary = summarize(
         targets,
@@ -88,6 +98,7 @@ def evaluate(
         [ep["return"] for ep in episodes],
         [ep["length"] for ep in episodes],
     )
+    summary["success_strict"] = float(np.mean([ep["success_strict"] for ep in episodes]))
     summary["n_failures"] = sum(ep["termination_reason"] not in (None, "success")
                                 for ep in episodes)
     summary["max_friction_ratio"] = max(ep["max_friction_ratio"] for ep in episodes)
@@ -128,7 +139,21 @@ class EvaluationResults:
             "env_wrapper": self.env_wrapper,
             "seed": self.seed,
             "goals_file": self.goals_file,
-            "summary": self.summary,
+            "summary": summary_yaml(self.summary),
             "episodes": [{k: v for k, v in ep.items() if k not in TRAJECTORY_KEYS}
                          for ep in self.episodes],
         }
+
+
+def summary_yaml(summary: dict[str, float]) -> dict[str, Any]:
+    """The summary as ``results.yml`` holds it: each success rate (``success_rate``,
+    ``success_strict``) followed by its Wilson 95 % interval (``success_ci95``,
+    ``success_strict_ci95``: ``[low, high]``, fractions)."""
+    n = int(summary["n_episodes"])
+    out: dict[str, Any] = {}
+    for key, value in summary.items():
+        out[key] = value
+        if key in ("success_rate", "success_strict") and n > 0:
+            ci = "success_ci95" if key == "success_rate" else "success_strict_ci95"
+            out[ci] = list(wilson_interval(success_count(value, n), n))
+    return out

@@ -15,6 +15,7 @@ A run is laid out as RL Zoo lays out its runs (``rl_zoo3.train`` writes the same
         <env_id>/vecnormalize.npz     observation statistics as plain arrays (read here)
         <env_id>/vecnormalize.pkl     the same as SB3 pickles it (read by rl_zoo3 only)
         best_model.zip                best on the validation goals (+ best_model_vecnormalize.*)
+        test_scores.yml               every score on the test goals (agents.evaluate; the count)
         rl_model_<n>_steps.zip        checkpoints (+ rl_model_vecnormalize_<n>_steps.*)
 """
 
@@ -32,5 +33,7 @@ STATS_NPZ = "vecnormalize.npz"
 STATS_PKL = "vecnormalize.pkl"
 #: Key of our run record inside the zoo's ``config.yml``.
 RECORD_KEY = "softhand"
+#: The run's record of its scores on the test goals (:mod:`agents.play.test_scores`).
+TEST_SCORES_FILE = "test_scores.yml"
 #: Best model of a run.
 BEST_MODEL = "best_model"
