@@ -15,8 +15,6 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
-import yaml
-
 from softhand_env.cli import (  # noqa: F401  (re-exported for the commands)
     CliError,
     check_output_dir,
@@ -24,6 +22,7 @@ from softhand_env.cli import (  # noqa: F401  (re-exported for the commands)
     one_line,
     run_cli,
 )
+from softhand_env.physics.safe_yaml import load_bounded
 
 #: A wrong input; the CLIs print its message as one line and exit with code 2 (the class of
 #: :mod:`softhand_env.cli`, so the output checks there raise it too).
@@ -31,16 +30,17 @@ UserError = CliError
 
 
 def parse_kv(items: Sequence[str] | None, what: str = "--env-kwargs") -> dict[str, Any]:
-    """``["k:v", ...]`` -> dict, each value parsed as YAML (``0.5``, ``true``, ``[6, 6]``)."""
+    """``["k:v", ...]`` -> dict, each value parsed as YAML (``0.5``, ``true``, ``[6, 6]``) with the
+    bounds of :func:`softhand_env.physics.safe_yaml.load_bounded` (no aliases, depth, size)."""
     out: dict[str, Any] = {}
     for item in items or ():
         key, sep, value = item.partition(":")
         if not sep or not key:
             raise UserError(f"{what} expects key:value items (got {item[:80]!r})")
         try:
-            out[key] = yaml.safe_load(value)
-        except (yaml.YAMLError, RecursionError):
-            raise UserError(f"{what}: cannot parse the value of {key[:80]!r}") from None
+            out[key] = load_bounded(value, source=f"{what} {key[:80]!r}")
+        except ValueError as exc:
+            raise UserError(str(exc)) from None
     return out
 
 

@@ -151,3 +151,24 @@ def test_soak_usage_errors_exit_2_and_a_failed_soak_1(capsys, monkeypatch):
     monkeypatch.setattr(soak, "soak", failed)
     monkeypatch.setattr(soak, "format_result", lambda r: "failed")
     assert soak.main(["--steps", "10", "--num-envs", "1"]) == 1
+
+
+def test_cli_keyword_values_are_read_with_bounds():
+    """A YAML alias bomb or a 50,000-deep value in ``key:value`` items is refused in one line
+    before it is expanded; plain values parse as YAML."""
+    import time
+
+    from agents.common.cli import UserError, parse_kv
+
+    assert parse_kv(["x:0.5", "pair:[6, 6]", "flag:true"]) == {"x": 0.5, "pair": [6, 6],
+                                                                  "flag": True}
+    bomb = "{a: &a [x, x, x, x, x, x, x, x, x], " + ", ".join(
+        f"{chr(98 + i)}: &{chr(98 + i)} [*{chr(97 + i)}, *{chr(97 + i)}, *{chr(97 + i)}, "
+        f"*{chr(97 + i)}, *{chr(97 + i)}, *{chr(97 + i)}, *{chr(97 + i)}, *{chr(97 + i)}, "
+        f"*{chr(97 + i)}]" for i in range(9)) + "}"
+    for value in (bomb, "[" * 50_000 + "]" * 50_000):
+        t0 = time.perf_counter()
+        with pytest.raises(UserError) as err:
+            parse_kv([f"hand_overrides:{value}"])
+        assert time.perf_counter() - t0 < 5.0
+        assert "\n" not in str(err.value) and len(str(err.value)) < 400

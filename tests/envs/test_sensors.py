@@ -209,12 +209,16 @@ def test_single_envs_equal_the_vector_env_rows(env_id):
 
 
 def test_info_keeps_the_true_values():
-    """v0 and v1 of the same id, same seed and actions: the same physics, goals and info (the
-    sensor draws come after every other draw), different observations."""
+    """The same -v1 id with ideal and with realistic sensing, same seed and actions: the same
+    physics, goals and info (the sensor draws come after every other draw), different
+    observations."""
     actions = _actions(40, seed=6)
     keys = ("object_pose", "deformation", "setpoint", "goal", "friction_ratio", "is_success")
     for env_id in ("SoftHandPose", "SoftHandPoseRandom"):
-        v0 = _episode(gym.make(f"{env_id}-v0", obs_mode="proprio_tactile"), 2, actions)
+        ideal = {"sensor_model": "ideal"}
+        if env_id.endswith("Random"):
+            ideal["rand_sensors"] = False
+        v0 = _episode(gym.make(f"{env_id}-v1", obs_mode="proprio_tactile", **ideal), 2, actions)
         v1 = _episode(gym.make(f"{env_id}-v1", obs_mode="proprio_tactile"), 2, actions)
         assert len(v0) == len(v1)
         for r0, r1 in zip(v0, v1, strict=True):

@@ -63,7 +63,7 @@ def _cases(tmp: Path) -> list[tuple[str, list[str], str]]:
         ("agents.evaluate", [*evaluate, "--out", str(evaluated)],
          "trajectories.png, episode.gif; pass --force"),
         ("agents.evaluate", [*evaluate, "--goals", str(deep), "--out", str(tmp / "e")],
-         "RecursionError"),
+         "JSON nested deeper than"),
         ("agents.evaluate", ["--model", str(tmp / "nothing.zip")], "not found"),
         ("agents.evaluate", ["--policy", "model-based", "--env", "CarRacing-v3"],
          "CarRacing-v3"),
