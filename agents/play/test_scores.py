@@ -33,8 +33,8 @@ from agents.runs.layout import MODELS_DIR, TEST_SCORES_FILE
 VALIDATION_SEED = 5000
 #: First seed of the test goals (``agents.evaluate``'s ``--seed`` default).
 TEST_SEED = 10000
-#: Size of the test family: seeds ``TEST_SEED .. TEST_SEED + TEST_FAMILY_SIZE - 1`` (the largest
-#: goal set ``agents.evaluate`` plays from ``TEST_SEED``).
+#: Size of the test family: the seeds from ``TEST_SEED`` to ``TEST_SEED + TEST_FAMILY_SIZE - 1``
+#: (the largest goal set ``agents.evaluate`` plays from ``TEST_SEED``).
 TEST_FAMILY_SIZE = 100_000
 
 
