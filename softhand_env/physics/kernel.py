@@ -474,6 +474,25 @@ def _store_lane_impulse(diag, Il, l):
 
 
 @njit(cache=True)
+def _finish_lanes(Y, U, PRM, Yl, Il, CHM, CNM, ch_limit, DIAG, FLAGS, systems, live, m, n):
+    """Write the ``m`` lanes of a block back to their systems: state from ``Yl`` (NY*LANES),
+    :func:`_finish` (flags, residuals), substeps ``n`` and the impulses ``Il`` of each live
+    lane (``live[l]``; ``systems[l]`` its row in ``Y``, ``DIAG``, ``FLAGS``)."""
+    k = np.empty((5, NY))
+    work = np.zeros(N_DIAG)
+    for l in range(m):
+        if live[l]:
+            s = systems[l]
+            y = Y[s]
+            for j in range(NY):
+                y[j] = Yl[j * LANES + l]
+            FLAGS[s] = _finish(y, U[s], PRM[s], CHM[l], CNM[l], ch_limit, DIAG[s], k, work)
+            if DIAG.shape[1] > 2:
+                DIAG[s, 2] = n
+            _store_lane_impulse(DIAG[s], Il, l)
+
+
+@njit(cache=True)
 def _advance_block(Y, U, PRM, n, ch_limit, DIAG, FLAGS, systems):
     """Advance the systems ``systems`` (at most LANES indices into Y) like :func:`_advance_one`,
     in lanes; spare lanes repeat a live system and are discarded."""
@@ -553,18 +572,7 @@ def _advance_block(Y, U, PRM, n, ch_limit, DIAG, FLAGS, systems):
                     Il[j * LANES + l] = Il[j * LANES + src]
     if n_live == 0:
         return
-    k = np.empty((5, NY))
-    work = np.zeros(N_DIAG)
-    for l in range(m):
-        if live[l]:
-            s = systems[l]
-            y = Y[s]
-            for j in range(NY):
-                y[j] = Yl[j * LANES + l]
-            FLAGS[s] = _finish(y, U[s], PRM[s], CHM[l], CNM[l], ch_limit, DIAG[s], k, work)
-            if DIAG.shape[1] > 2:
-                DIAG[s, 2] = n
-            _store_lane_impulse(DIAG[s], Il, l)
+    _finish_lanes(Y, U, PRM, Yl, Il, CHM, CNM, ch_limit, DIAG, FLAGS, systems, live, m, n)
 
 
 @njit(cache=True)

@@ -87,19 +87,17 @@ from softhand_env.physics.kernel import (
     _R_U,
     FATAL_FLAGS,
     FLAG_SKIP,
-    IMPULSE_OFFSET,
     LANES,
-    N_STEP_DIAG,
-    _finish,
+    _finish_lanes,
     _lanes_suspect,
     _rhs_lanes,
     _state_flags,
+    _store_lane_impulse,
 )
 from softhand_env.physics.model import (
     _FASTMATH,
     DN_1,
     DT_1,
-    N_DIAG,
     N_PARAMS,
     NQ,
     NY,
@@ -523,18 +521,7 @@ def _advance_block(Y, U, PRM, n, H, ch_limit, DIAG, FLAGS, systems):
                     W[l, j] = W[src, j]
     if n_live == 0:
         return
-    k = np.empty((5, NY))
-    work = np.zeros(N_DIAG)
-    for l in range(m):
-        if live[l]:
-            s = systems[l]
-            y = Y[s]
-            for j in range(NY):
-                y[j] = Yl[j * LANES + l]
-            FLAGS[s] = _finish(y, U[s], PRM[s], CHM[l], CNM[l], ch_limit, DIAG[s], k, work)
-            if DIAG.shape[1] > 2:
-                DIAG[s, 2] = n
-            _store_lane_impulse(DIAG[s], Il, l)
+    _finish_lanes(Y, U, PRM, Yl, Il, CHM, CNM, ch_limit, DIAG, FLAGS, systems, live, m, n)
 
 
 @njit(cache=True, inline="always")
@@ -542,14 +529,6 @@ def _copy_lane(A, rows, src, dst):
     """Copy lane ``src`` of the structure-of-arrays block A (rows*LANES) into lane ``dst``."""
     for j in range(rows):
         A[j * LANES + dst] = A[j * LANES + src]
-
-
-@njit(cache=True)
-def _store_lane_impulse(diag, Il, l):
-    """Impulses of lane ``l`` (Il, 4*LANES) into entries 3-6 of ``diag`` if it has room."""
-    if diag.shape[0] >= N_STEP_DIAG:
-        for j in range(4):
-            diag[IMPULSE_OFFSET + j] = Il[j * LANES + l]
 
 
 @njit(cache=True)
