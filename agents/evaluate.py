@@ -26,6 +26,14 @@ keyword otherwise is refused (:mod:`agents.runs.task_keywords`). ``--task-kwargs
 sets task keywords on purpose; the table and ``results.yml`` then say ``benchmark: false``
 and name them.
 
+A model is refused (one line, exit code 2) on an env whose signature differs from its run's
+(:mod:`softhand_env.envs.signature`: env id, sensor model, observation layout, ...), e.g. a
+``-v0`` model on its ``-v1`` id. ``--allow-off-signature`` plays it anyway (``--env`` may then
+name another id of the model's task): the table's title says ``NOT the benchmark:
+off-signature`` with the differing fields, and ``results.yml`` says ``benchmark: false`` and
+lists them under ``off_signature`` (fields passed over with ``--ignore-signature`` are listed
+too). The observation and action shapes must still match.
+
 Every success rate is printed and recorded with its Wilson 95 % score interval; the table
 also gives the strict success rate (within 0.5 mm / 0.5 deg at the end of a successful
 episode). A model scored on the test goals (a seeded goal set that meets seeds 10000 + k) is
@@ -85,7 +93,8 @@ class EvaluateSettings:
     ``model`` or ``policy`` (exactly one), the env id, the grasp angle of ``handling`` (deg),
     ``n_episodes`` goals from ``seed`` (or the goals of the JSON file ``goals``), sampling
     (``stochastic``), the output directory and what goes in it, the env-signature fields not
-    to check, and how a model is loaded (``trust_model``, torch device and threads)."""
+    to check or ``allow_off_signature`` (play a model off its signature, labelled), and how
+    a model is loaded (``trust_model``, torch device and threads)."""
 
     model: str | None = None
     policy: str | None = None
@@ -102,6 +111,7 @@ class EvaluateSettings:
     gif_size: int = 240
     ignore_signature: list[str] = dataclasses.field(default_factory=list)
     task_kwargs: list[str] = dataclasses.field(default_factory=list)
+    allow_off_signature: bool = False
     trust_model: bool = False
     device: str = "cpu"
     torch_threads: int = 1
@@ -113,13 +123,17 @@ class EvaluateSettings:
         check_range("--torch-threads", self.torch_threads, 1, 256)
         check_range("--gif-size", self.gif_size, 16, 2048)
         check_range("--grasp-deg", self.grasp_deg, 0.0, 30.0)
+        if self.allow_off_signature and self.model is None:
+            raise UserError("--allow-off-signature applies to --model (a scripted policy has "
+                            "no signature)")
 
     def choice(self) -> PolicyChoice:
         """The policy to play."""
         return PolicyChoice(model=self.model, policy=self.policy, env=self.env,
                             grasp_deg=self.grasp_deg, device=self.device,
                             trust_model=self.trust_model,
-                            task_kwargs=parse_kv(self.task_kwargs, "--task-kwargs"))
+                            task_kwargs=parse_kv(self.task_kwargs, "--task-kwargs"),
+                            allow_off_signature=self.allow_off_signature)
 
 
 def parse_args(argv: Sequence[str] | None = None) -> EvaluateSettings:
@@ -159,6 +173,10 @@ def parse_args(argv: Sequence[str] | None = None) -> EvaluateSettings:
                    help="task keywords to evaluate on instead of the id's (goal ranges, "
                         "tolerances, max_episode_steps, hand, rand_*...): the results are "
                         "labelled benchmark: false")
+    p.add_argument("--allow-off-signature", action="store_true",
+                   help="model: play it on an env whose signature differs from its run's "
+                        "(--env may name another id of its task, e.g. the -v1 id of a -v0 "
+                        "model): printed and recorded as off-signature, benchmark: false")
     p.add_argument("--trust-model", action="store_true",
                    help="model: also load what only unpickling can read (zip entries that cannot "
                         "be rebuilt, vecnormalize.pkl without .npz): runs code from the files")
@@ -323,8 +341,9 @@ def main(argv: Sequence[str] | None = None) -> dict[str, float]:
     env = make_env(env_id, kwargs, wrapper)
     if goals is not None:
         check_goal_range(env, goals)
+    off_signature: dict[str, str] = {}
     if isinstance(policy, ModelPolicy):
-        policy.check_env(env, args.ignore_signature)
+        off_signature = policy.check_env(env, args.ignore_signature, args.allow_off_signature)
     counted = isinstance(policy, ModelPolicy) and plays_test_goals(args.seed, n_episodes,
                                                                    args.goals)
     if counted and not is_shipped(policy.run.run_dir):
@@ -336,15 +355,14 @@ def main(argv: Sequence[str] | None = None) -> dict[str, float]:
     else:
         title = f"{env_id}, {name} policy, {n_episodes} goals from {args.goals}"
     overrides = args.choice().task_kwargs
-    if overrides:
-        title += " -- NOT the benchmark: task keywords " + ", ".join(
-            f"{k}={v!r}" for k, v in sorted(overrides.items()))
+    title += not_benchmark_label(overrides, off_signature)
     print(format_table(title, summary, targets))
     out.mkdir(parents=True, exist_ok=True)
     results = EvaluationResults(env_id=env_id, policy=str(args.model or args.policy),
                                 env_kwargs=kwargs, env_wrapper=wrapper, seed=args.seed,
                                 goals_file=args.goals, summary=summary, episodes=episodes,
-                                task_overrides=overrides)
+                                task_overrides=overrides,
+                                off_signature=list(off_signature.values()))
     with (out / "results.yml").open("w") as fh:
         yaml.safe_dump(results.to_yaml(), fh, sort_keys=False)
     if not args.no_plots:
@@ -359,6 +377,19 @@ def main(argv: Sequence[str] | None = None) -> dict[str, float]:
     if counted:
         count_test_score(policy, n_episodes, args.seed, summary)
     return summary
+
+
+def not_benchmark_label(overrides: dict[str, Any], off_signature: dict[str, str]) -> str:
+    """What a table title adds for an evaluation that is not the benchmark's: the task
+    keywords set on purpose and the signature fields the model was played off (empty string
+    for a benchmark evaluation)."""
+    parts = []
+    if overrides:
+        parts.append("task keywords " + ", ".join(f"{k}={v!r}"
+                                                  for k, v in sorted(overrides.items())))
+    if off_signature:
+        parts.append("off-signature, " + "; ".join(off_signature.values()))
+    return " -- NOT the benchmark: " + " | ".join(parts) if parts else ""
 
 
 def count_test_score(policy: ModelPolicy, n_episodes: int, seed: int,

@@ -30,7 +30,10 @@ class PolicyChoice:
     ``task_kwargs``: task keywords the user sets on purpose (the evaluation is then not the
     benchmark; see :mod:`agents.runs.task_keywords`). Without them a model is played on its
     id's task: its config's agent keywords only (a config that sets a task keyword otherwise
-    than the id is refused)."""
+    than the id is refused). ``allow_off_signature``: a model may be played on ``env``,
+    another id of its task (e.g. its ``-v1`` id), and on an env whose signature differs from
+    its run's (:meth:`~agents.runs.loading.ModelPolicy.check_env`): an off-signature
+    evaluation, not the benchmark's."""
 
     model: str | None = None
     policy: str | None = None
@@ -39,6 +42,7 @@ class PolicyChoice:
     device: str = "cpu"
     trust_model: bool = False
     task_kwargs: dict[str, Any] = field(default_factory=dict)
+    allow_off_signature: bool = False
 
     def __post_init__(self) -> None:
         if (self.model is None) == (self.policy is None):
@@ -52,10 +56,13 @@ def build(choice: PolicyChoice) -> tuple[Any, str, dict[str, Any], Any, str]:
     if choice.model is not None:
         policy: Any = ModelPolicy(choice.model, device=choice.device,
                                   trust_model=choice.trust_model)
-        if choice.env is not None and choice.env != policy.env_id:
-            raise UserError(f"the model was trained on {policy.env_id}, not {choice.env}")
-        env_id, wrapper = policy.env_id, policy.env_wrapper
-        kwargs, _ = policy.evaluation_kwargs(choice.task_kwargs)
+        env_id, wrapper = choice.env or policy.env_id, policy.env_wrapper
+        if env_id != policy.env_id and not choice.allow_off_signature:
+            raise UserError(f"the model was trained on {policy.env_id}, not {env_id} (pass "
+                            "--allow-off-signature to play it there, labelled not the "
+                            "benchmark)")
+        task_targets(env_id)  # a registered soft-hand id, before the keywords are looked up
+        kwargs, _ = policy.evaluation_kwargs(choice.task_kwargs, env_id=env_id)
         name = f"{policy.algo}"
     else:
         from agents.scripted import HandlingProcessPolicy, ModelBasedPolicy, PaperSequencePolicy

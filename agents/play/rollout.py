@@ -114,8 +114,8 @@ class EvaluationResults:
     """An evaluation as ``results.yml`` holds it: env id, the policy (model path or scripted
     name), the ``gym.make`` keywords and wrappers it was played with, the first goal seed, the
     ``--goals`` file (None: seeded goals), the summary of :func:`evaluate` and the episode
-    records (without their trajectories); ``benchmark``: whether the task is the id's (no
-    ``task_overrides``)."""
+    records (without their trajectories); ``benchmark``: whether the evaluation is the id's
+    benchmark (no ``task_overrides``, no ``off_signature``)."""
 
     env_id: str
     policy: str
@@ -127,13 +127,17 @@ class EvaluationResults:
     episodes: list[dict[str, Any]]
     #: Task keywords the user set on purpose (empty: the id's task, the benchmark).
     task_overrides: dict[str, Any] = dataclasses.field(default_factory=dict)
+    #: Signature fields in which the model's run differs from the env it was played on (each
+    #: "field (model ..., env ...)"; empty: on its signature, or a scripted policy).
+    off_signature: list[str] = dataclasses.field(default_factory=list)
 
     def to_yaml(self) -> dict[str, Any]:
         """The mapping written to ``results.yml`` (keys in field order)."""
         return {
             "env_id": self.env_id,
-            "benchmark": not self.task_overrides,
+            "benchmark": not self.task_overrides and not self.off_signature,
             "task_overrides": dict(self.task_overrides),
+            "off_signature": list(self.off_signature),
             "policy": self.policy,
             "env_kwargs": self.env_kwargs,
             "env_wrapper": self.env_wrapper,

@@ -255,14 +255,30 @@ class ModelPolicy:
             raise UserError(f"{source}: max_episode_steps must be an int in [1, "
                             f"{MAX_EPISODE_STEPS}] (got {short_repr(steps)})")
 
-    def evaluation_kwargs(self, overrides: dict[str, Any] | None = None
-                          ) -> tuple[dict[str, Any], dict[str, Any]]:
+    def evaluation_kwargs(self, overrides: dict[str, Any] | None = None,
+                          env_id: str | None = None) -> tuple[dict[str, Any], dict[str, Any]]:
         """``gym.make`` keywords to evaluate the model on its id's benchmark task, and the
         task keywords ``overrides`` changed (see
         :func:`agents.runs.task_keywords.evaluation_kwargs`: a run config that sets a task
-        keyword otherwise than the id is refused, UserError)."""
+        keyword otherwise than the id is refused, UserError).
+
+        ``env_id``: another registered id of the same task to play on instead (an
+        off-signature evaluation, e.g. a ``-v0`` model on its ``-v1`` id): the run config is
+        checked against its own id as above, then the model's agent keywords are played on
+        ``env_id``'s task."""
         source = f"{self.run.params_dir / CONFIG_FILE}"
-        return evaluation_kwargs(self.env_id, self.env_kwargs, overrides, source=source)
+        kwargs, applied = evaluation_kwargs(self.env_id, self.env_kwargs, overrides,
+                                            source=source)
+        if env_id is None or env_id == self.env_id:
+            return kwargs, applied
+        from softhand_env.envs import ENV_IDS
+
+        if ENV_IDS.get(env_id) != ENV_IDS[self.env_id]:
+            raise UserError(f"the model was trained on {self.env_id} (task "
+                            f"{ENV_IDS[self.env_id]}); {short_repr(env_id)} is not an id of "
+                            "that task")
+        agent = {k: v for k, v in self.env_kwargs.items() if k in AGENT_KEYS}
+        return evaluation_kwargs(env_id, agent, overrides, source=source)
 
     def _check_files(self, stats: Path | None) -> None:
         run = self.run
@@ -320,35 +336,56 @@ class ModelPolicy:
             raise UserError(f"cannot load {run.stats_pkl}: {type(exc).__name__}: {exc}") from None
         return vecnormalize.normalize_obs
 
-    def check_env(self, env: gym.Env, ignore: Sequence[str] = ()) -> None:
-        """Raise :class:`UserError` if the model does not fit ``env``.
+    def check_env(self, env: gym.Env, ignore: Sequence[str] = (),
+                  allow_off_signature: bool = False) -> dict[str, str]:
+        """Raise :class:`UserError` if the model does not fit ``env``; return the signature
+        fields that differ and were let through.
 
         Two checks, both before the first step: the run's env signature (``env_signature`` of
         the run record in its ``config.yml``, written by :mod:`agents.train`: env id, package
-        version, task, observation layout, action mapping, control period; see
+        version, task, observation layout, action mapping, control period, sensor model; see
         :mod:`softhand_env.envs.signature`) against the signature of ``env``'s base
         environment, then the model's observation/action shapes against ``env``'s (wrappers
-        included). ``ignore`` names signature fields not to compare (e.g. ``version``). A run
-        without a signature (trained before signatures existed) only gets the shape check and
-        a warning on stderr.
+        included). ``ignore`` names signature fields not to hold against the model (e.g.
+        ``version``); ``allow_off_signature`` lets every differing field through (an
+        off-signature evaluation, e.g. a ``-v0`` model on its ``-v1`` id); the shapes must
+        always match. A run without a signature (trained before signatures existed) only
+        gets the shape check and a warning on stderr.
+
+        Returns
+        -------
+        dict
+            Field -> description with both values
+            (:func:`~softhand_env.envs.signature.signature_differences`) of every differing
+            field that was let through; empty: the model plays on its own signature.
         """
-        from softhand_env.envs.signature import check_model_compatibility
+        from softhand_env.envs.signature import signature_differences
 
         saved = self.run.record.get("env_signature")
+        tolerated: dict[str, str] = {}
         if saved is None:
             print(f"warning: {self.path} has no env_signature in its {CONFIG_FILE}: only the "
                   "observation and action shapes are checked", file=sys.stderr)
         else:
-            try:
-                check_model_compatibility(saved, env, ignore=tuple(ignore))
-            except ValueError as exc:
-                raise UserError(f"{self.path}: {str(exc)[:500]} (retrain, or pass "
-                                "--ignore-signature FIELD to run it anyway)") from None
+            if not isinstance(saved, dict):
+                raise UserError(f"{self.path}: env_signature in its {CONFIG_FILE} must be a "
+                                "mapping")
+            found = signature_differences(saved, env)
+            tolerated = {k: v for k, v in found.items()
+                         if allow_off_signature or k in ignore}
+            refused = [v for k, v in found.items() if k not in tolerated]
+            if refused:
+                text = ("trained model does not fit this environment; differing fields: "
+                        + "; ".join(refused))
+                raise UserError(f"{self.path}: {text[:500]} (retrain, or pass "
+                                "--allow-off-signature to play it anyway, labelled not the "
+                                "benchmark)")
         for name in ("observation_space", "action_space"):
             want, got = getattr(self.model, name).shape, getattr(env, name).shape
             if want != got:
                 raise UserError(f"{self.path}: the model's {name} has shape {want}, the env's "
                                 f"{got}")
+        return tolerated
 
     def normalize(self, obs: Any) -> Any:
         """Observation as the model saw it in training (VecNormalize, statistics frozen)."""

@@ -4,9 +4,11 @@ A policy trained on one observation layout silently does the wrong thing on anot
 ``history_len=2`` model fed single frames, a ``proprio`` model fed tactile entries, a delta
 policy driving absolute set-points). :func:`env_signature` describes what a model depends on;
 ``python -m agents.train`` stores it as ``env_signature`` in the run's ``config.yml`` and
-``agents.evaluate`` (``ModelPolicy.check_env``) checks it with
-:func:`check_model_compatibility` before the first step, exiting with one line naming every
-differing field. Your own scripts can keep it in a JSON file next to the model
+``agents.evaluate`` (``ModelPolicy.check_env``) compares it with the env's
+(:func:`signature_differences`) before the first step, exiting with one line naming every
+differing field (with ``--allow-off-signature`` it plays and labels the result off-signature,
+not the benchmark's); :func:`check_model_compatibility` is that check as one call (a
+``ValueError``). Your own scripts can keep it in a JSON file next to the model
 (:func:`save_env_signature`, :func:`signature_path`) or as the model's ``env_signature``
 attribute (Stable-Baselines3 stores it in its zip).
 
@@ -205,17 +207,41 @@ def _same(a: Any, b: Any) -> bool:
     return a == b
 
 
-def _differences(saved: dict[str, Any], current: dict[str, Any], ignore) -> list[str]:
-    out = []
+def signature_differences(saved: dict[str, Any], env: Any,
+                          ignore: tuple[str, ...] = ()) -> dict[str, str]:
+    """The fields in which a saved signature and ``env``'s differ.
+
+    Parameters
+    ----------
+    saved : dict
+        A model's signature (:func:`env_signature` at training time); a field it lacks reads
+        as in :data:`LEGACY_VALUES`.
+    env
+        Anything :func:`env_signature` takes.
+    ignore : tuple of str
+        Fields not to compare.
+
+    Returns
+    -------
+    dict
+        Field -> a description with both values, e.g. ``"env_id (model 'SoftHandPose-v0', env
+        'SoftHandPose-v1')"``, in the env signature's field order (then fields only the model
+        has); empty when the model fits.
+    """
+    return _differences({**LEGACY_VALUES, **saved}, env_signature(env), set(ignore))
+
+
+def _differences(saved: dict[str, Any], current: dict[str, Any], ignore) -> dict[str, str]:
+    out = {}
     for key in list(current) + [k for k in saved if k not in current]:
         if key in ignore:
             continue
         if key not in saved:
-            out.append(f"{key} (missing from the model's signature; env {current[key]!r})")
+            out[key] = f"{key} (missing from the model's signature; env {current[key]!r})"
         elif key not in current:
-            out.append(f"{key} (model {saved[key]!r}; unknown to this version of the env)")
+            out[key] = f"{key} (model {saved[key]!r}; unknown to this version of the env)"
         elif not _same(saved[key], current[key]):
-            out.append(f"{key} (model {saved[key]!r}, env {current[key]!r})")
+            out[key] = f"{key} (model {saved[key]!r}, env {current[key]!r})"
     return out
 
 
@@ -275,7 +301,7 @@ def check_model_compatibility(
             )
     if saved is not None:
         saved = {**LEGACY_VALUES, **saved}
-        problems += _differences(saved, current, set(ignore))
+        problems += list(_differences(saved, current, set(ignore)).values())
     if problems:
         raise ValueError(
             "trained model does not fit this environment; differing fields: "
@@ -291,5 +317,6 @@ __all__ = [
     "env_signature",
     "load_env_signature",
     "save_env_signature",
+    "signature_differences",
     "signature_path",
 ]

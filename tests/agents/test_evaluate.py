@@ -184,7 +184,81 @@ def test_signature_field_can_be_ignored_on_purpose(capsys, tmp_path):
     _write_config(run, config)
     argv = ["--model", str(run), "--n-episodes", "1", "--no-plots", "--out", str(tmp_path / "o")]
     evaluate.main([*argv, "--ignore-signature", "version"])
+    results = yaml.safe_load((tmp_path / "o" / "results.yml").read_text())
+    # played, and recorded as played off the run's signature
+    assert results["benchmark"] is False
+    assert results["off_signature"] == [f"version (model '0.0.1', env '{_version()}')"]
     _expect_error(capsys, [*argv, "--ignore-signature", "colour"], "unknown field(s) colour")
+
+
+def _version():
+    import softhand_env
+
+    return softhand_env.__version__
+
+
+#: A shipped -v0 model and the -v1 id of its task; one validation goal.
+V0, V1 = "SoftHandTranslate-v0", "SoftHandTranslate-v1"
+ONE_GOAL = ["--n-episodes", "1", "--seed", "5000", "--no-plots"]
+#: What a -v0 model's signature differs in on its -v1 id.
+V1_FIELDS = [f"env_id (model '{V0}', env '{V1}')", "sensor_model (model 'ideal', env 'realistic')"]
+
+
+def test_a_v0_model_is_refused_on_its_v1_id_in_one_line(capsys, tmp_path):
+    out = tmp_path / "o"
+    _expect_error(capsys, ["--model", V0, "--env", V1, *ONE_GOAL, "--out", str(out)],
+                  f"trained on {V0}, not {V1} (pass --allow-off-signature")
+    assert not out.exists()
+    # a run whose signature differs on its own id (another sensor model): refused the same way
+    run, config = _shipped_copy(tmp_path)
+    config["softhand"]["env_signature"]["sensor_model"] = "realistic"
+    _write_config(run, config)
+    _expect_error(capsys, ["--model", str(run), *ONE_GOAL, "--out", str(out)],
+                  "sensor_model (model 'realistic', env 'ideal')")
+    assert not (out / "results.yml").exists()
+
+
+def test_off_signature_evaluation_plays_and_is_labelled(capsys, tmp_path):
+    out = tmp_path / "o"
+    summary = evaluate.main(["--model", V0, "--env", V1, "--allow-off-signature", *ONE_GOAL,
+                             "--out", str(out)])
+    title = capsys.readouterr().out.splitlines()[0]
+    assert title.startswith(f"{V1}, ppo policy") and "NOT the benchmark: off-signature" in title
+    assert all(field in title for field in V1_FIELDS), title
+    results = yaml.safe_load((out / "results.yml").read_text())
+    assert results["env_id"] == V1 and results["benchmark"] is False
+    assert results["off_signature"] == V1_FIELDS and results["task_overrides"] == {}
+    assert summary["n_episodes"] == 1 and len(results["episodes"]) == 1
+    # played on the -v1 id's task (its sensing), with the model's own agent keywords
+    env = env_factory.make_env(V1, results["env_kwargs"])
+    assert env.unwrapped.config.sensors.name == "realistic"
+    assert results["env_kwargs"]["max_delta_deg"] == loading.ModelPolicy(V0).env_kwargs[
+        "max_delta_deg"]
+    # a run whose signature differs on its own id: let through, the field recorded
+    run, config = _shipped_copy(tmp_path)
+    config["softhand"]["env_signature"]["sensor_model"] = "realistic"
+    _write_config(run, config)
+    evaluate.main(["--model", str(run), "--allow-off-signature", *ONE_GOAL,
+                   "--out", str(tmp_path / "p")])
+    results = yaml.safe_load((tmp_path / "p" / "results.yml").read_text())
+    assert results["off_signature"] == ["sensor_model (model 'realistic', env 'ideal')"]
+    # on its own signature the same model is the benchmark, with the flag or without
+    evaluate.main(["--model", V0, "--allow-off-signature", *ONE_GOAL, "--out",
+                   str(tmp_path / "q")])
+    results = yaml.safe_load((tmp_path / "q" / "results.yml").read_text())
+    assert results["benchmark"] is True and results["off_signature"] == []
+
+
+@pytest.mark.parametrize(
+    "argv,fragment",
+    [
+        (["--model", V0, "--env", "SoftHandPose-v1"], "is not an id of that task"),
+        (["--model", V0, "--env", "SoftHandTranslate-v9"], "unknown env id"),
+        (["--policy", "model-based", "--env", V1], "applies to --model"),
+    ],
+)
+def test_off_signature_mode_keeps_the_task_and_needs_a_model(capsys, argv, fragment):
+    _expect_error(capsys, [*argv, "--allow-off-signature", *ONE_GOAL], fragment)
 
 
 def test_model_without_signature_is_shape_checked(capsys, tmp_path):
