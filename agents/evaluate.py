@@ -41,6 +41,12 @@ counted in its run directory's ``test_scores.yml`` (count and every score; the s
 are not written to: their test scores are documented in ``docs/results.md``). The protocol:
 choices on the validation goals (seed 5000 + k), the test goals once per final model.
 
+With ``--ray [ADDRESS]`` the episodes are split over Ray workers (a Ray started here with this
+machine's CPUs, or the cluster at ADDRESS; ``--ray-workers K`` chunks): each worker loads the
+model (or builds the scripted policy) and its env itself and plays a contiguous part of the
+goal set; the records are merged in goal order and equal the serial run's
+(:mod:`agents.play.sharding`). A model path must then be readable by every worker.
+
 Prints a table (success rates, final |x| and |theta| errors, return, episode length) and writes
 to ``--out`` (default ``logs/eval/<env id>/<model run or policy>``; earlier results are never
 overwritten without ``--force``): ``results.yml`` (summary and every
@@ -74,7 +80,15 @@ from agents.common.cli import (
 from agents.common.env_factory import goal_seeds, make_env, task_targets
 from agents.common.metrics import ERROR_KEYS, success_count, success_text
 from agents.play.choice import SCRIPTED, PolicyChoice, build
-from agents.play.rollout import EvaluationResults, evaluate, run_episode
+from agents.play.rollout import (
+    EvaluationResults,
+    chunks_of,
+    evaluate,
+    play_chunk,
+    run_episode,
+    summarize_episodes,
+)
+from agents.play.sharding import add_ray_options, map_chunks, merge, ray_options, worker_count
 from agents.play.test_scores import is_shipped, plays_test_goals, read_scores, record_score
 from agents.plots.episodes import (
     choose_episode,
@@ -115,9 +129,12 @@ class EvaluateSettings:
     trust_model: bool = False
     device: str = "cpu"
     torch_threads: int = 1
+    ray: str | None = None
+    ray_workers: int | None = None
 
     def __post_init__(self) -> None:
-        """Range checks (UserError on a bad value)."""
+        """Range checks (UserError on a bad value; ``--ray`` without Ray installed too)."""
+        self.sharding = ray_options(self.ray, self.ray_workers)
         check_range("--n-episodes", self.n_episodes, 1, 100_000)
         check_range("--seed", self.seed, 0, SEED_MAX - self.n_episodes)
         check_range("--torch-threads", self.torch_threads, 1, 256)
@@ -182,6 +199,7 @@ def parse_args(argv: Sequence[str] | None = None) -> EvaluateSettings:
                         "be rebuilt, vecnormalize.pkl without .npz): runs code from the files")
     p.add_argument("--device", default="cpu", choices=("cpu", "cuda", "auto"))
     p.add_argument("--torch-threads", type=int, default=1, help="1 .. 256")
+    add_ray_options(p)
     ns = p.parse_args(argv)
     return EvaluateSettings(**{f.name: getattr(ns, f.name)
                                for f in dataclasses.fields(EvaluateSettings)})
@@ -349,7 +367,10 @@ def main(argv: Sequence[str] | None = None) -> dict[str, float]:
     if counted and not is_shipped(policy.run.run_dir):
         read_scores(policy.run.run_dir)  # a corrupt record is refused before playing
     seeds = goal_seeds(args.seed, n_episodes)
-    summary, episodes = evaluate(env, policy, seeds, targets, not args.stochastic, goals)
+    if args.sharding.address is None:
+        summary, episodes = evaluate(env, policy, seeds, targets, not args.stochastic, goals)
+    else:
+        summary, episodes = evaluate_sharded(args, seeds, targets, goals)
     if goals is None:
         title = evaluation_title(env_id, name, n_episodes, args.seed, targets)
     else:
@@ -390,6 +411,21 @@ def not_benchmark_label(overrides: dict[str, Any], off_signature: dict[str, str]
     if off_signature:
         parts.append("off-signature, " + "; ".join(off_signature.values()))
     return " -- NOT the benchmark: " + " | ".join(parts) if parts else ""
+
+
+def evaluate_sharded(args: EvaluateSettings, seeds: Sequence[int], targets: Sequence[str],
+                     goals: Sequence[Sequence[float]] | None
+                     ) -> tuple[dict[str, float], list[dict[str, Any]]]:
+    """:func:`~agents.play.rollout.evaluate` with the episodes split over Ray workers
+    (``--ray``; :mod:`agents.play.sharding`): each worker builds the policy and env of the
+    command line's choice and plays a contiguous part of the goal set; the records are merged
+    in goal order, so summary and records equal the serial run's."""
+    options = args.sharding
+    n_chunks = worker_count(options, len(seeds))
+    chunks = chunks_of(args.choice(), seeds, n_chunks, goals, deterministic=not args.stochastic,
+                       torch_threads=args.torch_threads)
+    episodes = merge(map_chunks(play_chunk, chunks, options.address, options.workers))
+    return summarize_episodes(episodes, targets), episodes
 
 
 def count_test_score(policy: ModelPolicy, n_episodes: int, seed: int,

@@ -11,6 +11,10 @@ deterministically in its own env (:func:`agents.play.choice.build`: the run's ``
 and wrappers, the benchmark's 1 mm / 1 deg tolerance), with the goal range widened to
 ``--span-mm`` / ``--span-deg`` so that goals outside the task's +-10 mm / +-10 deg can be set.
 
+With ``--ray [ADDRESS]`` (``--ray-workers K``) each policy's grid is split over Ray workers,
+each building the policy and its env itself (:mod:`agents.play.sharding`); the results equal
+the serial run's (``seconds`` is then the wall-clock of the sharded grid).
+
 Writes to ``--out`` (files already there are refused without ``--force``):
 
 * ``reachable.png`` / ``reachable.npz``: one episode per goal on a ``--grid`` x ``--grid`` grid
@@ -47,7 +51,15 @@ from agents.common.cli import (
 from agents.common.env_factory import make_env
 from agents.common.metrics import SUCCESS_TOLERANCE
 from agents.play.choice import PolicyChoice, build
-from agents.play.rollout import run_episode
+from agents.play.rollout import chunks_of, play_chunk, run_episode
+from agents.play.sharding import (
+    RayOptions,
+    add_ray_options,
+    map_chunks,
+    merge,
+    ray_options,
+    worker_count,
+)
 from agents.plots.pose import OUTCOMES, Manoeuvre, in_box, plot_manoeuvre, plot_reachable, rate
 from agents.runs.loading import ModelPolicy
 from softhand_env.envs.task_configs import load_task_config
@@ -96,6 +108,7 @@ def parse_args(argv: Sequence[str] | None = None) -> argparse.Namespace:
                    help="manoeuvre goal theta* (deg), within +-span-deg (default 8)")
     p.add_argument("--trust-model", action="store_true",
                    help="models: also load what only unpickling can read (as agents.evaluate)")
+    add_ray_options(p)
     args = p.parse_args(argv)
     args.policies = args.policies or []
     if not args.policies:
@@ -107,6 +120,7 @@ def parse_args(argv: Sequence[str] | None = None) -> argparse.Namespace:
     check_range("--goal-seed", args.goal_seed, 0, SEED_MAX - args.grid**2)
     check_range("--goal-x-mm", args.goal_x_mm, -args.span_mm, args.span_mm)
     check_range("--goal-theta-deg", args.goal_theta_deg, -args.span_deg, args.span_deg)
+    args.sharding = ray_options(args.ray, args.ray_workers)
     return args
 
 
@@ -126,17 +140,24 @@ class Contender:
         return float(self.env.unwrapped.dt)
 
 
+def contender_choice(kind: str, value: str, trust_model: bool = False) -> PolicyChoice:
+    """The :class:`~agents.play.choice.PolicyChoice` of a ``--model``/``--policy`` entry."""
+    return PolicyChoice(model=value if kind == "model" else None,
+                        policy=value if kind == "policy" else None, env=ENV_ID,
+                        grasp_deg=6.0, device="cpu", trust_model=trust_model)
+
+
+def span_kwargs(span_mm: float, span_deg: float) -> dict[str, float]:
+    """The goal-range keywords that let the grid's goals be set (mm, deg)."""
+    return {"goal_x_range_mm": span_mm, "goal_theta_range_deg": span_deg}
+
+
 def make_contender(kind: str, value: str, span_mm: float, span_deg: float,
                    trust_model: bool = False) -> Contender:
     """Build a ``--model``/``--policy`` entry through :func:`agents.play.choice.build` (as
-    ``agents.evaluate`` does) and its env with ``goal_x_range_mm=span_mm,
-    goal_theta_range_deg=span_deg`` added."""
-    choice = PolicyChoice(model=value if kind == "model" else None,
-                          policy=value if kind == "policy" else None, env=ENV_ID,
-                          grasp_deg=6.0, device="cpu", trust_model=trust_model)
-    policy, env_id, kwargs, wrapper, name = build(choice)
-    kwargs = {**kwargs, "goal_x_range_mm": span_mm, "goal_theta_range_deg": span_deg}
-    env = make_env(env_id, kwargs, wrapper)
+    ``agents.evaluate`` does) and its env with :func:`span_kwargs` added."""
+    policy, env_id, kwargs, wrapper, name = build(contender_choice(kind, value, trust_model))
+    env = make_env(env_id, {**kwargs, **span_kwargs(span_mm, span_deg)}, wrapper)
     if isinstance(policy, ModelPolicy):
         policy.check_env(env)
         name = f"{policy.algo} {policy.run.run_dir.name}"
@@ -157,25 +178,57 @@ def goal_grid(grid: int, span_mm: float, span_deg: float) -> tuple[np.ndarray, n
     return np.linspace(-span_mm, span_mm, grid), np.linspace(-span_deg, span_deg, grid)
 
 
-def run_grid(c: Contender, goal_x_mm: np.ndarray, goal_theta_deg: np.ndarray,
-             goal_seed: int) -> dict[str, np.ndarray]:
-    """One episode per grid goal; returns ``outcome`` (G_theta, G_x) str, ``success``
-    (G_theta, G_x) bool, ``final_pose`` (G_theta, G_x, 3) (m, m, rad), ``length``
-    (G_theta, G_x) control steps."""
-    shape = (len(goal_theta_deg), len(goal_x_mm))
+def grid_goals(goal_x_mm: np.ndarray, goal_theta_deg: np.ndarray, goal_seed: int
+               ) -> tuple[list[int], list[tuple[float, float]]]:
+    """Seeds and goals (x* m, theta* rad) of the grid's episodes in flat order
+    (``i_theta * G_x + i_x``)."""
+    seeds, goals = [], []
+    for i, th in enumerate(goal_theta_deg):
+        for j, x in enumerate(goal_x_mm):
+            seeds.append(goal_seed + i * len(goal_x_mm) + j)
+            goals.append((float(x) * 1e-3, math.radians(float(th))))
+    return seeds, goals
+
+
+def grid_arrays(episodes: Sequence[dict[str, Any]], shape: tuple[int, int]
+                ) -> dict[str, np.ndarray]:
+    """The grid results of the episode records (flat order, :func:`grid_goals`):
+    ``outcome`` (G_theta, G_x) str, ``success`` (G_theta, G_x) bool, ``final_pose``
+    (G_theta, G_x, 3) (m, m, rad), ``length`` (G_theta, G_x) control steps."""
     out = {"outcome": np.empty(shape, dtype=f"<U{max(map(len, OUTCOMES)) + 8}"),
            "success": np.zeros(shape, dtype=bool),
            "final_pose": np.zeros((*shape, 3)),
            "length": np.zeros(shape, dtype=np.int64)}
-    for i, th in enumerate(goal_theta_deg):
-        for j, x in enumerate(goal_x_mm):
-            goal = (float(x) * 1e-3, math.radians(float(th)))
-            ep = run_episode(c.env, c.policy, goal_seed + i * shape[1] + j, goal=goal)
-            out["outcome"][i, j] = outcome_of(ep)
-            out["success"][i, j] = ep["success"]
-            out["final_pose"][i, j] = ep["final_pose"]
-            out["length"][i, j] = ep["length"]
+    for k, ep in enumerate(episodes):
+        i, j = divmod(k, shape[1])
+        out["outcome"][i, j] = outcome_of(ep)
+        out["success"][i, j] = ep["success"]
+        out["final_pose"][i, j] = ep["final_pose"]
+        out["length"][i, j] = ep["length"]
     return out
+
+
+def run_grid(c: Contender, goal_x_mm: np.ndarray, goal_theta_deg: np.ndarray,
+             goal_seed: int) -> dict[str, np.ndarray]:
+    """One episode per grid goal (:func:`grid_goals`) in ``c``'s env; returns
+    :func:`grid_arrays`."""
+    seeds, goals = grid_goals(goal_x_mm, goal_theta_deg, goal_seed)
+    episodes = [run_episode(c.env, c.policy, seed, goal=goal)
+                for seed, goal in zip(seeds, goals, strict=True)]
+    return grid_arrays(episodes, (len(goal_theta_deg), len(goal_x_mm)))
+
+
+def run_grid_sharded(choice: PolicyChoice, span: dict[str, float], goal_x_mm: np.ndarray,
+                     goal_theta_deg: np.ndarray, goal_seed: int, options: RayOptions
+                     ) -> dict[str, np.ndarray]:
+    """:func:`run_grid` with the episodes split over Ray workers (``--ray``): each worker
+    builds the policy of ``choice`` and its env (``span``: :func:`span_kwargs`) and plays a
+    contiguous part of the grid; merged in grid order, the arrays equal the serial run's."""
+    seeds, goals = grid_goals(goal_x_mm, goal_theta_deg, goal_seed)
+    chunks = chunks_of(choice, seeds, worker_count(options, len(seeds)), goals,
+                       env_kwargs=span, trajectories=False)
+    episodes = merge(map_chunks(play_chunk, chunks, options.address, options.workers))
+    return grid_arrays(episodes, (len(goal_theta_deg), len(goal_x_mm)))
 
 
 def save_npz(path: Path, contenders: Sequence[Contender], goal_x_mm: np.ndarray,
@@ -246,9 +299,15 @@ def main(argv: Sequence[str] | None = None) -> dict[str, Any]:
     goal_x_mm, goal_theta_deg = goal_grid(args.grid, args.span_mm, args.span_deg)
     inside = in_box(goal_x_mm, goal_theta_deg, box_mm, box_deg)
     results, seconds = [], []
-    for c in contenders:
+    for (kind, value), c in zip(args.policies, contenders, strict=True):
         t0 = time.perf_counter()
-        results.append(run_grid(c, goal_x_mm, goal_theta_deg, args.goal_seed))
+        if args.sharding.address is None:
+            results.append(run_grid(c, goal_x_mm, goal_theta_deg, args.goal_seed))
+        else:
+            results.append(run_grid_sharded(
+                contender_choice(kind, value, args.trust_model),
+                span_kwargs(args.span_mm, args.span_deg), goal_x_mm, goal_theta_deg,
+                args.goal_seed, args.sharding))
         seconds.append(time.perf_counter() - t0)
         print(summary_line(c.label, results[-1]["outcome"], inside, seconds[-1]), flush=True)
     goal = (args.goal_x_mm * 1e-3, math.radians(args.goal_theta_deg))

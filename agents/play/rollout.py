@@ -1,8 +1,10 @@
 """Playing episodes: one episode from a seed (optionally a given goal) and a seeded goal set.
 
 :func:`run_episode` plays one episode and returns its record (trajectory included);
-:func:`evaluate` plays a goal set and returns the summary
-(:func:`agents.common.metrics.summarize` plus failures and the friction needed) and the records;
+:func:`play_episodes` the records of a goal set, :func:`summarize_episodes` their summary
+(:func:`agents.common.metrics.summarize` plus failures and the friction needed), :func:`evaluate`
+both; :class:`EpisodeChunk` / :func:`play_chunk` are part of a goal set as a worker plays it on
+its own (:mod:`agents.play.sharding`: the env and policy built from plain data);
 :class:`EvaluationResults` is what ``agents.evaluate`` writes to ``results.yml``.
 """
 
@@ -23,6 +25,7 @@ from agents.common.metrics import (
     summarize,
     wilson_interval,
 )
+from agents.play.choice import PolicyChoice
 
 
 def run_episode(
@@ -75,15 +78,13 @@ def run_episode(
     }
 
 
-def evaluate(
-    env: Any, policy: Any, seeds: Sequence[int], targets: Sequence[str], deterministic: bool = True,
-    goals: Sequence[Sequence[float]] | None = None,
-) -> tuple[dict[str, float], list[dict[str, Any]]]:
-    """Play every goal of ``seeds`` (or episode k: ``seeds[k]`` with ``goals[k]``); returns the
-    summary and the episode records. Besides :func:`~agents.common.metrics.summarize`'s keys the
-    summary holds ``success_strict`` (the rate of :func:`~agents.common.metrics.strict_success`,
-    0.5 mm / 0.5 deg), ``n_failures`` and ``max_friction_ratio``; each record its
-    ``errors`` and ``success_strict``."""
+def play_episodes(
+    env: Any, policy: Any, seeds: Sequence[int], targets: Sequence[str],
+    deterministic: bool = True, goals: Sequence[Sequence[float]] | None = None,
+) -> list[dict[str, Any]]:
+    """The records of :func:`run_episode` for every goal of ``seeds`` (episode k:
+    ``seeds[k]``, with ``goals[k]`` if given), each with its final ``errors`` (mm / deg) and
+    ``success_strict`` (:func:`~agents.common.metrics.strict_success`, 0.5 mm / 0.5 deg)."""
     episodes = []
     for k, seed in enumerate(seeds):
         ep = run_episode(env, policy, seed, deterministic, goal=None if goals is None else goals[k])
@@ -91,6 +92,14 @@ def evaluate(
         ep["errors"] = final_errors(info, targets)
         ep["success_strict"] = strict_success(ep["success"], ep["errors"], targets)
         episodes.append(ep)
+    return episodes
+
+
+def summarize_episodes(episodes: Sequence[dict[str, Any]], targets: Sequence[str]
+                       ) -> dict[str, float]:
+    """The summary of :func:`play_episodes` records: besides
+    :func:`~agents.common.metrics.summarize`'s keys ``success_strict`` (the rate of strict
+    successes), ``n_failures`` and ``max_friction_ratio``."""
     summary = summarize(
         targets,
         [ep["success"] for ep in episodes],
@@ -102,7 +111,70 @@ def evaluate(
     summary["n_failures"] = sum(ep["termination_reason"] not in (None, "success")
                                 for ep in episodes)
     summary["max_friction_ratio"] = max(ep["max_friction_ratio"] for ep in episodes)
-    return summary, episodes
+    return summary
+
+
+def evaluate(
+    env: Any, policy: Any, seeds: Sequence[int], targets: Sequence[str], deterministic: bool = True,
+    goals: Sequence[Sequence[float]] | None = None,
+) -> tuple[dict[str, float], list[dict[str, Any]]]:
+    """Play every goal of ``seeds`` (or episode k: ``seeds[k]`` with ``goals[k]``); returns the
+    summary (:func:`summarize_episodes`) and the episode records (:func:`play_episodes`)."""
+    episodes = play_episodes(env, policy, seeds, targets, deterministic, goals)
+    return summarize_episodes(episodes, targets), episodes
+
+
+@dataclass(frozen=True)
+class EpisodeChunk:
+    """Episodes a worker plays on its own (:mod:`agents.play.sharding`), in plain data: the
+    policy choice (built again by the worker: :func:`agents.play.choice.build`), ``env_kwargs``
+    added to the choice's ``gym.make`` keywords, the seeds and goals (SI units) of the
+    episodes, deterministic play, torch threads (a model), and whether the records keep their
+    trajectories (``pose``, ``setpoint``)."""
+
+    choice: PolicyChoice
+    seeds: tuple[int, ...]
+    goals: tuple[tuple[float, ...], ...] | None = None
+    env_kwargs: dict[str, Any] = dataclasses.field(default_factory=dict)
+    deterministic: bool = True
+    torch_threads: int = 1
+    trajectories: bool = True
+
+
+def chunks_of(choice: PolicyChoice, seeds: Sequence[int], n_chunks: int,
+              goals: Sequence[Sequence[float]] | None = None, **fields: Any
+              ) -> list[EpisodeChunk]:
+    """The episodes ``seeds`` (with ``goals``) cut into ``n_chunks`` contiguous
+    :class:`EpisodeChunk` (further fields by keyword), in order."""
+    from agents.play.sharding import split
+
+    index = split(range(len(seeds)), n_chunks)
+    return [EpisodeChunk(choice, tuple(int(seeds[k]) for k in part),
+                         None if goals is None else tuple(tuple(float(v) for v in goals[k])
+                                                          for k in part), **fields)
+            for part in index]
+
+
+def play_chunk(chunk: EpisodeChunk) -> list[dict[str, Any]]:
+    """:func:`play_episodes` of a chunk in an env and with a policy built here from the
+    chunk's choice (the same as the serial run's, so the records are the same bit for bit)."""
+    from agents.common.env_factory import make_env, task_targets
+    from agents.play.choice import build
+
+    if chunk.choice.model is not None:
+        import torch
+
+        torch.set_num_threads(chunk.torch_threads)
+    policy, env_id, kwargs, wrapper, _ = build(chunk.choice)
+    env = make_env(env_id, {**kwargs, **chunk.env_kwargs}, wrapper)
+    try:
+        episodes = play_episodes(env, policy, chunk.seeds, task_targets(env_id),
+                                 chunk.deterministic, chunk.goals)
+    finally:
+        env.close()
+    if not chunk.trajectories:
+        episodes = [{k: v for k, v in ep.items() if k not in TRAJECTORY_KEYS} for ep in episodes]
+    return episodes
 
 
 #: Keys of an episode record that stay out of ``results.yml`` (the trajectory arrays).
