@@ -7,7 +7,8 @@ follow them. The feature is the last ``n`` actions (newest first, as given to ``
 clipped to the action space [-1, 1]; zeros after a reset), ``n * action_dim`` entries. It
 carries no information about the object.
 
-* :class:`ActionHistory`: a Gymnasium wrapper of one env (an ``env_wrapper`` entry of a run);
+* :class:`ActionHistory`: a Gymnasium wrapper of one env (an ``env_wrapper`` entry of a run;
+  its keywords are recorded in ``env.spec``, so ``gym.make(env.spec)`` rebuilds it);
 * :class:`VecActionHistory`: the same for an SB3 ``VecEnv`` (the native vector env;
   :attr:`ActionHistory.vector_wrapper`).
 
@@ -93,7 +94,7 @@ class VecActionHistory(VecEnvWrapper):
         return append_history(obs, self._history), rewards, dones, infos
 
 
-class ActionHistory(gym.ObservationWrapper):
+class ActionHistory(gym.ObservationWrapper, gym.utils.RecordConstructorArgs):
     """Append the last ``n`` actions to one env's observation (module doc).
 
     Parameters
@@ -109,6 +110,7 @@ class ActionHistory(gym.ObservationWrapper):
     vector_wrapper = VecActionHistory
 
     def __init__(self, env: gym.Env, n: int):
+        gym.utils.RecordConstructorArgs.__init__(self, n=n)
         super().__init__(env)
         self.n, dim = _check(n, env.action_space)
         self.observation_space = space_with_history(env.observation_space, self.n * dim)

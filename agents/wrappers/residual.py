@@ -25,7 +25,7 @@ from agents.scripted.loop_plan import LoopPlanPolicy
 from softhand_env.envs.observation import ANGLE_SCALE
 
 
-class ResidualWrapper(gym.Wrapper):
+class ResidualWrapper(gym.Wrapper, gym.utils.RecordConstructorArgs):
     """The agent steers an offset added to the set-points of :class:`LoopPlanPolicy`.
 
     Action: ``Box(-1, 1, (2,))``, the change of the offset in units of ``delta_deg``; the
@@ -49,6 +49,8 @@ class ResidualWrapper(gym.Wrapper):
     def __init__(
         self, env: gym.Env, delta_deg: float = 0.5, max_offset_deg: float = 5.0, **plan_kwargs: Any
     ):
+        gym.utils.RecordConstructorArgs.__init__(self, delta_deg=delta_deg,
+                                                 max_offset_deg=max_offset_deg, **plan_kwargs)
         super().__init__(env)
         actions = env.unwrapped.config.actions  # type: ignore[attr-defined]
         if actions.mode != "absolute" or actions.normalize:

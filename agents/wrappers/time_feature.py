@@ -6,7 +6,9 @@ to know how far into the episode it is. The feature is the remaining fraction of
 ``1 - t / max_steps`` in [0, 1] (t = control steps taken since reset, 0 at reset), the value
 and place of sb3-contrib's ``TimeFeatureWrapper``. It carries no information about the object.
 
-* :class:`TimeFeature`: a Gymnasium wrapper of one env (an ``env_wrapper`` entry of a run);
+* :class:`TimeFeature`: a Gymnasium wrapper of one env (an ``env_wrapper`` entry of a run;
+  it records its keywords, so ``env.spec`` names it and ``gym.make(env.spec)`` rebuilds the
+  wrapped env, as Minari's ``recover_environment`` does);
 * :class:`VecTimeFeature`: the same feature for an SB3 ``VecEnv`` (the native vector env, which
   takes no single-env wrapper: :func:`agents.sb3.native_vec_env.make_sb3_vec_env` replaces
   :class:`TimeFeature` by it through :attr:`TimeFeature.vector_wrapper`).
@@ -81,7 +83,7 @@ class VecTimeFeature(VecEnvWrapper):
         return append_feature(obs, self._t, self.max_steps), rewards, dones, infos
 
 
-class TimeFeature(gym.ObservationWrapper):
+class TimeFeature(gym.ObservationWrapper, gym.utils.RecordConstructorArgs):
     """Append the remaining fraction of the episode to one env's observation (module doc).
 
     Parameters
@@ -96,6 +98,7 @@ class TimeFeature(gym.ObservationWrapper):
     vector_wrapper = VecTimeFeature
 
     def __init__(self, env: gym.Env, max_steps: int):
+        gym.utils.RecordConstructorArgs.__init__(self, max_steps=max_steps)
         super().__init__(env)
         self.max_steps = _check_steps(max_steps)
         self.observation_space = space_with_feature(env.observation_space)
