@@ -1,4 +1,5 @@
-"""Typed run config and run record: what ``agents.train`` and ``agents.distill`` save with a run.
+"""Typed run config and run record: what ``agents.train``, ``agents.distill`` and ``agents.bc``
+save with a run.
 
 A run's ``<env id>/config.yml`` (:mod:`agents.runs.layout`) is the hyper-parameter entry in
 RL Zoo's dialect plus our record under ``softhand``. In memory the pair is a :class:`RunConfig`:
@@ -69,6 +70,25 @@ class DistillOutcome:
 
 
 @dataclass
+class BCOutcome:
+    """How an ``agents.bc`` run ended: the dataset's provenance (id, episodes, transitions,
+    the policy that collected it, its code permalink), the fit (epochs, minibatch, Adam step
+    size, network), wall time (s), transitions fitted (``total_timesteps``; no env step is
+    trained on) and the best validation summary (its ``epoch`` included)."""
+
+    dataset: dict[str, Any]
+    fit: dict[str, Any]
+    wall_time_s: float
+    total_timesteps: int
+    best_validation: dict[str, float]
+    trainer: str = "bc"
+
+    def to_yaml(self) -> dict[str, Any]:
+        """The record keys of the outcome."""
+        return dataclasses.asdict(self)
+
+
+@dataclass
 class RunRecord:
     """Our record of a run (``config.yml``'s ``softhand`` entry).
 
@@ -96,7 +116,7 @@ class RunRecord:
     started: str
     trained_agent: dict[str, Any] | None = None
     env_signature: dict[str, Any] | None = None
-    outcome: TrainOutcome | DistillOutcome | None = None
+    outcome: TrainOutcome | DistillOutcome | BCOutcome | None = None
 
     def to_yaml(self) -> dict[str, Any]:
         """The record as ``config.yml`` holds it (plain YAML values; ``env_signature`` only
