@@ -138,7 +138,7 @@ def load_data(dataset_id: str) -> CloningData:
         import minari
     except ImportError:
         raise UserError("agents.bc needs Minari (pip install 'softhand-env[data]')") from None
-    from agents.collect import dataset_dir
+    from agents.offline.collection import dataset_dir
 
     if not (dataset_dir(dataset_id) / "data").is_dir():
         raise UserError(f"no local dataset {dataset_id!r} in {dataset_dir(None)} "
@@ -212,8 +212,8 @@ def fit(model: Any, vecnormalize: Any, data: CloningData, args: BCSettings, eval
     validation (epoch, success rate, median errors)."""
     import torch
 
-    from agents.distill import student_mean
     from agents.play.rollout import evaluate
+    from agents.sb3.policies import mean_action
 
     policy = model.policy
     x = torch.as_tensor(vecnormalize.normalize_obs(data.observations), dtype=torch.float32)
@@ -231,7 +231,7 @@ def fit(model: Any, vecnormalize: Any, data: CloningData, args: BCSettings, eval
         total = 0.0
         for start in range(0, len(order), args.batch_size):
             idx = torch.as_tensor(order[start:start + args.batch_size])
-            loss = torch.nn.functional.mse_loss(student_mean(policy, x[idx]), y[idx])
+            loss = torch.nn.functional.mse_loss(mean_action(policy, x[idx]), y[idx])
             optimizer.zero_grad()
             loss.backward()
             optimizer.step()
@@ -289,9 +289,10 @@ def main(argv: Sequence[str] | None = None) -> Path:
     hp = hyperparams(data, args.net_arch)
     venv = DummyVecEnv([lambda: make_env(data.env_id, eval_kwargs, data.env_wrapper)])
     vecnormalize = VecNormalize(venv, norm_obs=True, norm_reward=False, training=False)
-    vecnormalize.obs_rms.mean = data.observations.mean(axis=0).astype(np.float64)
-    vecnormalize.obs_rms.var = data.observations.var(axis=0).astype(np.float64)
-    vecnormalize.obs_rms.count = float(len(data.observations))
+    rms: Any = vecnormalize.obs_rms  # a RunningMeanStd (Box observations)
+    rms.mean = data.observations.mean(axis=0).astype(np.float64)
+    rms.var = data.observations.var(axis=0).astype(np.float64)
+    rms.count = float(len(data.observations))
     model = PPO("MlpPolicy", vecnormalize, policy_kwargs=policy_kwargs_from(hp["policy_kwargs"]),
                 seed=args.seed, device=args.device, n_steps=64, batch_size=64, verbose=0)
     record = RunRecord(
@@ -318,8 +319,8 @@ def main(argv: Sequence[str] | None = None) -> Path:
         "log_folder": str(args.log_folder)})
     model.save(run_dir / f"{data.env_id}.zip")
     save_vecnormalize(vecnormalize, run_dir / data.env_id / "vecnormalize")
-    np.savez(run_dir / "bc_curve.npz", **{k: np.array([c.get(k, np.nan) for c in curve])
-                                         for k in curve[0]})
+    arrays: dict[str, Any] = {k: np.array([c.get(k, np.nan) for c in curve]) for k in curve[0]}
+    np.savez(run_dir / "bc_curve.npz", **arrays)
     record.outcome = BCOutcome(
         dataset=data.provenance,
         fit={"epochs": args.epochs, "batch_size": args.batch_size, "lr": args.lr,

@@ -59,6 +59,7 @@ from agents.runs.model_files import sha256
 from agents.runs.records import DistillOutcome, EvalSettings
 from agents.runs.writing import write_args, write_run_config
 from agents.sb3.native_vec_env import make_sb3_vec_env
+from agents.sb3.policies import mean_action as student_mean
 from agents.sb3.training import (
     TrainSettings,
     build,
@@ -254,12 +255,6 @@ def teacher_view(obs: dict[str, np.ndarray], teacher: ObservationLayout,
     if teacher_size is not None:
         rest = rest[..., : teacher_size - teacher.history_size]
     return {**obs, BLIND_KEY: np.concatenate([kept, rest], axis=-1)}
-
-
-def student_mean(policy: Any, obs: Any) -> Any:
-    """Mean action (torch (B, act_dim)) of an SB3 ActorCriticPolicy for observations ``obs``."""
-    features = policy.extract_features(obs, policy.pi_features_extractor)
-    return policy.action_net(policy.mlp_extractor.forward_actor(features))
 
 
 def validate(model: Any, venv: Any, targets: Sequence[str], eval_seed: int

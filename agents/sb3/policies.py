@@ -43,6 +43,13 @@ _EXTRACTOR_KWARGS = ("features_extractor_class", "features_extractor_kwargs",
                      "share_features_extractor")
 
 
+def mean_action(policy: Any, obs: Any) -> Any:
+    """Mean action (torch (B, act_dim)) of an SB3 ActorCriticPolicy for observations ``obs``
+    (torch (B, obs_dim)): what DAgger and behaviour cloning fit to their labels."""
+    features = policy.extract_features(obs, policy.pi_features_extractor)
+    return policy.action_net(policy.mlp_extractor.forward_actor(features))
+
+
 def _refuse_extractor_kwargs(policy: str, kwargs: dict[str, Any]) -> None:
     """ValueError if ``kwargs`` tries to set what the blind-actor policy ``policy`` sets."""
     for key in _EXTRACTOR_KWARGS:

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+
 from agents import bc, collect, evaluate
 from agents.common.cli import UserError, run_cli
 from agents.runs.loading import ModelPolicy

@@ -10,6 +10,7 @@ import pytest
 from agents import collect
 from agents.common.cli import UserError, run_cli
 from agents.common.env_factory import make_env
+from agents.offline import collection
 
 minari = pytest.importorskip("minari")
 
@@ -63,8 +64,8 @@ def test_dataset_round_trip_and_replay(datasets, policy, kind):
     dataset = minari.load_dataset(dataset_id)
     assert (datasets / dataset_id).is_dir()
     assert dataset.total_episodes == 2
-    policy_obj, env_id, kwargs, wrapper, _ = collect.build_source(
-        collect.CollectSource(policy, "SoftHandPose-v0"))
+    policy_obj, env_id, kwargs, wrapper, _ = collection.build_source(
+        collection.CollectSource(policy, "SoftHandPose-v0"))
     env = make_env(env_id, kwargs, wrapper)
     assert dataset.observation_space == env.observation_space
     assert dataset.action_space == env.action_space
@@ -142,17 +143,17 @@ def test_missing_ray_is_refused_before_work(datasets, monkeypatch, capsys):
 
 
 def test_task_slugs_and_defaults():
-    assert collect.task_slug("SoftHandPose-v0") == "pose"
-    assert collect.task_slug("SoftHandPoseRandom-v0") == "pose-random"
-    assert collect.task_slug("SoftHandTranslate-v1") == "translate-v1"
-    ids = [d.dataset_id for d in collect.DEFAULT_DATASETS]
+    assert collection.task_slug("SoftHandPose-v0") == "pose"
+    assert collection.task_slug("SoftHandPoseRandom-v0") == "pose-random"
+    assert collection.task_slug("SoftHandTranslate-v1") == "translate-v1"
+    ids = [d.dataset_id for d in collection.DEFAULT_DATASETS]
     assert len(set(ids)) == len(ids)
     assert {"softhand/pose/expert-v0", "softhand/pose/scripted-v0", "softhand/pose/loop-plan-v0",
             "softhand/pose/random-v0", "softhand/translate/expert-v0",
             "softhand/reorient/random-v0"} <= set(ids)
-    for d in collect.DEFAULT_DATASETS:
-        collect.check_dataset_id(d.dataset_id, d.env)
-        collect.check_seeds(0, d.episodes)
+    for d in collection.DEFAULT_DATASETS:
+        collection.check_dataset_id(d.dataset_id, d.env)
+        collection.check_seeds(0, d.episodes)
 
 
 @pytest.fixture(scope="module")

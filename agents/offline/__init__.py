@@ -1,0 +1,1 @@
+"""Offline data: Minari datasets of episodes (:mod:`agents.offline.collection`)."""
