@@ -617,3 +617,24 @@ def test_a_failed_step_is_never_a_success():
     batch = task.evaluate(tuple(np.full(3, v) for v in pose), goal, np.zeros(3),
                           np.array([False, True, False]), np.array([True, True, False]))[1]
     np.testing.assert_array_equal(batch, [True, False, False])
+
+
+def test_version_history_lists_every_semantic_change():
+    """The Version History names the semantic changes of the issue's list: slip termination
+    on by default, ``is_success`` False on a failed step, and v1 with each of its keywords
+    (:data:`V1_KWARGS`, :data:`V1_HAND_OVERRIDES`, :data:`V1_RANDOM_KWARGS`)."""
+    history = SoftHandEnv.__doc__.split("## Version History", 1)[1]
+    history = " ".join(history.split())
+    assert "terminate_on_slip=True`` by default" in history
+    assert "``is_success`` is False on a failed step" in history
+    v1 = history[history.index("- v1:"):]
+
+    def shown(value):
+        return f'"{value}"' if isinstance(value, str) else (
+            f"{value:g}" if isinstance(value, float) else str(value))
+
+    for key, value in {**V1_KWARGS, **V1_RANDOM_KWARGS}.items():
+        assert f"{key}={shown(value)}" in v1, (key, value)
+    for key, value in V1_HAND_OVERRIDES.items():
+        assert f'hand_overrides={{"{key}": {shown(value)}}}' in v1, (key, value)
+    assert "``-v0`` ids keep the semantics above" in v1

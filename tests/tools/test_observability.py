@@ -10,6 +10,7 @@ import pytest
 pytest.importorskip("torch")
 
 from softhand_env.cli import CliError  # noqa: E402
+from softhand_env.envs.observation import ANGLE_SCALE  # noqa: E402
 from softhand_env.envs.sensors import load_sensor_spec  # noqa: E402
 from softhand_env.tools import observability as ob  # noqa: E402
 
@@ -136,12 +137,12 @@ def test_sensor_model_changes_the_frames_not_the_episodes():
         np.testing.assert_array_equal(a, b)
     diff = np.abs(np.vstack(real.frames) - np.vstack(ideal.frames))
     assert diff.max() > 1e-4
-    # the angle entries (first two, theta / 30 deg, float32) of a realistic frame are whole
-    # encoder counts; the ideal ones are not
-    count = load_sensor_spec("realistic").encoder_resolution_deg
-    counts = np.vstack(real.frames)[:, :2] * 30.0 / count
+    # the angle entries (first two, theta / ANGLE_SCALE, float32) of a realistic frame are
+    # whole encoder counts; the ideal ones are not
+    count = math.radians(load_sensor_spec("realistic").encoder_resolution_deg)
+    counts = np.vstack(real.frames)[:, :2] * ANGLE_SCALE / count
     np.testing.assert_allclose(counts, np.round(counts), atol=1e-3)
-    exact = np.vstack(ideal.frames)[:, :2] * 30.0 / count
+    exact = np.vstack(ideal.frames)[:, :2] * ANGLE_SCALE / count
     assert np.abs(exact - np.round(exact)).max() > 0.1
     assert "sensor_model realistic, obs_mode proprio, obs_noise 0" == ob.sensing_text(real.sensing)
 
