@@ -132,9 +132,12 @@ def collect(env_id: str, env_kwargs: dict[str, Any] | None = None, episodes: int
     import gymnasium as gym
 
     import softhand_env  # noqa: F401  (registers the ids)
+    from softhand_env.envs import ENV_IDS
 
     if policy not in POLICIES:
         raise ValueError(f"policy must be one of {POLICIES} (got {policy!r})")
+    if env_id not in ENV_IDS:
+        raise ValueError(f"{env_id!r} is not a soft-hand id (ids: {', '.join(ENV_IDS)})")
     kw = {**(env_kwargs or {}), "history_len": 1}
     if policy == "scripted":
         kw.update(action_mode="absolute", normalize_action=False)
