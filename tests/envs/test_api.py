@@ -174,6 +174,12 @@ def test_v1_ids_mirror_the_v0_ids():
         assert gym.spec(v0).reward_threshold == gym.spec(v1).reward_threshold
         assert gym.make(v0).unwrapped.options.sensor_model == "ideal"
         assert gym.make(v1).unwrapped.options.sensor_model == "realistic"
+        # -v0 keeps its keywords (none of v1's); -v1 is -v0 plus exactly v1's keywords
+        k0, k1 = gym.spec(v0).kwargs, gym.spec(v1).kwargs
+        v1_only = {**V1_KWARGS, **(V1_RANDOM_KWARGS if "Random" in v0 else {})}
+        assert not set(k0) & set(v1_only) and "integrator" not in k0.get("hand_overrides", {})
+        hand = {**k0.get("hand_overrides", {}), **V1_HAND_OVERRIDES}
+        assert k1 == {**k0, **v1_only, "hand_overrides": hand}
 
 
 def test_manual_ids_table_matches_registry():
