@@ -129,7 +129,7 @@ def dataset_dir(dataset_id: str | None) -> Path:
 
 
 def check_seeds(seed: int, n_episodes: int) -> None:
-    """:class:`UserError` if the seeds ``seed .. seed + n_episodes - 1`` meet a held-out
+    """:class:`UserError` if the seeds ``seed`` to ``seed + n_episodes - 1`` meet a held-out
     family (:data:`HELD_OUT`)."""
     for name, low, high in HELD_OUT:
         if seed < high and seed + n_episodes > low:
@@ -307,7 +307,7 @@ def code_permalink() -> str:
     return f"{text}, git {commit}{'+dirty' if dirty else ''}"
 
 
-def test_success(policy: Any) -> dict[str, Any] | None:
+def recorded_test_success(policy: Any) -> dict[str, Any] | None:
     """The policy's success on the test goals where one is recorded: a shipped model's
     ``results.yml`` (seeded from 10000, the benchmark), else a run's last
     ``test_scores.yml`` entry; None for a scripted or random policy or an unscored run."""
@@ -342,7 +342,7 @@ def test_success(policy: Any) -> dict[str, Any] | None:
 def dataset_metadata(source: CollectSource, policy: Any, env: Any, kwargs: dict[str, Any],
                      wrapper: Any, seeds: Sequence[int], wall_time_s: float) -> dict[str, Any]:
     """The dataset's own metadata keys (beside Minari's): ``policy`` (the ``--policy``
-    value, and a model's file), ``test_success`` (:func:`test_success`), ``env_id`` and
+    value, and a model's file), ``test_success`` (:func:`recorded_test_success`), ``env_id`` and
     ``env_version`` (the id's ``-v<N>``), ``env_signature``
     (:func:`softhand_env.envs.signature.env_signature`: sensor model, observation layout,
     action mapping, control period, package version), ``sensor_model``, the ``gym.make``
@@ -355,7 +355,7 @@ def dataset_metadata(source: CollectSource, policy: Any, env: Any, kwargs: dict[
     return {
         "policy": source.policy,
         "policy_file": str(policy.path) if isinstance(policy, ModelPolicy) else None,
-        "test_success": test_success(policy),
+        "test_success": recorded_test_success(policy),
         "env_id": source.env,
         "env_version": int(source.env.rpartition("-v")[2]),
         "env_signature": signature,
