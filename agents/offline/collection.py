@@ -46,9 +46,14 @@ AUTHOR = "softhand-env contributors"
 #: Minari storage format.
 DATA_FORMAT = "hdf5"
 #: Per-step info entries recorded (``goal`` on the goal tasks only). ``termination_reason``
-#: is stored as a string, ``""`` while the episode runs.
-INFO_KEYS = ("object_pose", "goal", "deformation", "setpoint", "friction_ratio",
-             "contact_impulse", "grasped", "is_success", "termination_reason")
+#: is stored as a string, ``""`` while the episode runs; ``object_velocity`` (vx, vy, omega;
+#: m/s, m/s, rad/s) is read from the env's physics, the others from ``info``.
+INFO_KEYS = ("object_pose", "object_velocity", "goal", "deformation", "setpoint",
+             "friction_ratio", "contact_impulse", "grasped", "is_success", "termination_reason")
+#: Episode metadata of the drawn hand and object parameters: ``param_<field>`` for these
+#: fields of :class:`softhand_env.physics.params.HandParams` (SI; the nominal values without
+#: randomisation), besides ``setpoint_latency`` (control steps).
+PARAM_FIELDS = ("W_obj", "M_obj", "I_obj", "E", "c_n", "c_t", "Kp", "Kd", "Ki", "mu")
 #: Held-out seed ranges ``[low, high)`` no dataset may use: the validation and test goals.
 HELD_OUT = (("validation", VALIDATION_SEED, TEST_SEED),
             ("test", TEST_SEED, TEST_SEED + TEST_FAMILY_SIZE))
@@ -219,16 +224,33 @@ def _info_entry(info: dict[str, Any], keys: Sequence[str]) -> dict[str, Any]:
     return out
 
 
+def _with_physics(env: Any, info: dict[str, Any]) -> dict[str, Any]:
+    """``info`` with the object velocity of the env's physics (a copy, shape (3,))."""
+    return {**info, "object_velocity": np.array(env.unwrapped.physics.object_velocity,
+                                                dtype=np.float64).reshape(3)}
+
+
+def episode_params(env: Any, info: dict[str, Any]) -> dict[str, Any]:
+    """The episode's drawn parameters after ``reset``: ``param_<field>`` of
+    :data:`PARAM_FIELDS` (SI) and ``setpoint_latency`` (control steps)."""
+    params = env.unwrapped.physics.params
+    out: dict[str, Any] = {f"param_{f}": float(getattr(params, f)) for f in PARAM_FIELDS}
+    out["setpoint_latency"] = int(info.get("setpoint_latency", 0))
+    return out
+
+
 def record_episode(env: Any, policy: Any, seed: int) -> dict[str, Any]:
     """Play one episode from ``reset(seed=seed)`` deterministically and return every step:
     ``observations`` (T + 1, ...), ``actions`` (T, ...; cast to the action space's dtype
     before ``step``, so that the stored actions replay the episode exactly), ``rewards``,
     ``terminations``, ``truncations`` (T,), ``infos`` ({key: (T + 1, ...)}, :data:`INFO_KEYS`
     present in the env's info), ``seed``, ``success`` and ``termination_reason`` of the last
-    step (None: truncated)."""
+    step (None: truncated) and ``params`` (:func:`episode_params`)."""
     if isinstance(policy, UniformRandomPolicy):
         policy.seed_episode(seed)
     obs, info = env.reset(seed=int(seed))
+    params = episode_params(env, info)
+    info = _with_physics(env, info)
     keys = [k for k in INFO_KEYS if k in info]
     space = env.action_space
     observations, infos = [obs], [_info_entry(info, keys)]
@@ -239,6 +261,7 @@ def record_episode(env: Any, policy: Any, seed: int) -> dict[str, Any]:
         start = np.array([False])
         action = np.asarray(action, dtype=space.dtype).reshape(space.shape)
         obs, reward, terminated, truncated, info = env.step(action)
+        info = _with_physics(env, info)
         observations.append(obs)
         infos.append(_info_entry(info, keys))
         actions.append(action)
@@ -258,6 +281,7 @@ def record_episode(env: Any, policy: Any, seed: int) -> dict[str, Any]:
                       else _stack([e[k] for e in infos])) for k in keys},
         "success": bool(info["is_success"]),
         "termination_reason": info.get("termination_reason"),
+        "params": params,
     }
 
 
@@ -402,8 +426,8 @@ def write_dataset(dataset_id: str, episodes: Sequence[dict[str, Any]], env: Any,
     success = [ep["success"] for ep in episodes]
     dataset.storage.update_metadata({**extra, "success_rate": float(np.mean(success))})
     dataset.storage.update_episode_metadata(
-        [{"success": bool(ep["success"]), "termination_reason": ep["termination_reason"] or ""}
-         for ep in episodes])
+        [{"success": bool(ep["success"]), "termination_reason": ep["termination_reason"] or "",
+          **ep["params"]} for ep in episodes])
     return minari.load_dataset(dataset_id)
 
 

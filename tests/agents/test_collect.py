@@ -42,6 +42,8 @@ def _replay_matches(dataset):
             np.testing.assert_array_equal(obs, ep.observations[t + 1])
             assert reward == ep.rewards[t]
             assert (term, trunc) == (ep.terminations[t], ep.truncations[t])
+            np.testing.assert_array_equal(env.unwrapped.physics.object_velocity,
+                                          ep.infos["object_velocity"][t + 1])
             for key in ("object_pose", "goal", "deformation", "friction_ratio"):
                 np.testing.assert_array_equal(info[key], ep.infos[key][t + 1], err_msg=key)
             assert info["is_success"] == ep.infos["is_success"][t + 1]
@@ -87,6 +89,21 @@ def test_dataset_round_trip_and_replay(datasets, policy, kind):
     seeds = [m["seed"] for m in dataset.storage.get_episode_metadata([0, 1])]
     assert seeds == [0, 1]
     _replay_matches(dataset)
+
+
+def test_drawn_parameters_are_episode_metadata(datasets):
+    _collect("SoftHandPoseRandom-v0", "random", 2, "softhand/pose-random/random-v0")
+    dataset = minari.load_dataset("softhand/pose-random/random-v0")
+    metas = list(dataset.storage.get_episode_metadata([0, 1]))
+    env = dataset.recover_environment()
+    for meta in metas:
+        env.reset(seed=int(meta["seed"]))
+        params = env.unwrapped.physics.params
+        for field in collection.PARAM_FIELDS:
+            assert meta[f"param_{field}"] == float(getattr(params, field)), field
+        assert meta["setpoint_latency"] in (0, 1)
+    assert metas[0]["param_M_obj"] != metas[1]["param_M_obj"]  # drawn per episode
+    env.close()
 
 
 def test_existing_id_is_kept_without_force(datasets):
