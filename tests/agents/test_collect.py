@@ -57,6 +57,7 @@ def _replay_matches(dataset):
 
 @pytest.mark.parametrize("policy, kind", [
     ("SoftHandPose-v0", "expert"),      # a shipped model with its time-feature wrapper
+    ("SoftHandPose-v0_residual", "residual"),  # its residual wrapper (keywords) rebuilt
     ("loop-plan", "loop-plan"),         # a scripted policy (absolute set-points)
     ("random", "random"),
 ])
@@ -84,6 +85,8 @@ def test_dataset_round_trip_and_replay(datasets, policy, kind):
     if kind == "expert":
         assert meta["test_success"]["success"] == 0.99  # the shipped results.yml
         assert meta["test_success"]["first_seed"] == 10000
+    elif kind == "residual":
+        assert meta["test_success"]["success"] == 0.94
     else:
         assert meta["test_success"] is None
     seeds = [m["seed"] for m in dataset.storage.get_episode_metadata([0, 1])]
