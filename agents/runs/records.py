@@ -69,6 +69,27 @@ class DistillOutcome:
 
 
 @dataclass
+class RLlibOutcome:
+    """How an ``agents.rllib_train`` run ended: wall time (s) of the training iterations, env
+    steps sampled, iterations, env steps per second of the iterations, and the Ray and RLlib
+    settings (``ray``: address, env runners, envs per runner, CPUs of the cluster, Ray
+    version; ``rllib``: the PPO settings as RLlib got them)."""
+
+    wall_time_s: float
+    total_timesteps: int
+    iterations: int
+    env_steps_per_s: float
+    ray: dict[str, Any]
+    rllib: dict[str, Any]
+    trainer: str = "rllib"
+    interrupted: bool = False
+
+    def to_yaml(self) -> dict[str, Any]:
+        """The record keys of the outcome."""
+        return dataclasses.asdict(self)
+
+
+@dataclass
 class RunRecord:
     """Our record of a run (``config.yml``'s ``softhand`` entry).
 
@@ -96,7 +117,7 @@ class RunRecord:
     started: str
     trained_agent: dict[str, Any] | None = None
     env_signature: dict[str, Any] | None = None
-    outcome: TrainOutcome | DistillOutcome | None = None
+    outcome: TrainOutcome | DistillOutcome | RLlibOutcome | None = None
 
     def to_yaml(self) -> dict[str, Any]:
         """The record as ``config.yml`` holds it (plain YAML values; ``env_signature`` only
