@@ -48,9 +48,9 @@ def key_map(n_hidden: int) -> dict[str, str]:
     """RLlib RLModule key -> SB3 policy key for ``n_hidden`` hidden layers (module doc)."""
     out = {"pi.log_std": "log_std"}
     for p in ("weight", "bias"):
-        for i in range(n_hidden):
-            out[f"encoder.actor_encoder.net.mlp.{2 * i}.{p}"] = f"mlp_extractor.policy_net.{2 * i}.{p}"
-            out[f"encoder.critic_encoder.net.mlp.{2 * i}.{p}"] = f"mlp_extractor.value_net.{2 * i}.{p}"
+        for i in range(0, 2 * n_hidden, 2):  # Linear, activation, Linear, ...
+            out[f"encoder.actor_encoder.net.mlp.{i}.{p}"] = f"mlp_extractor.policy_net.{i}.{p}"
+            out[f"encoder.critic_encoder.net.mlp.{i}.{p}"] = f"mlp_extractor.value_net.{i}.{p}"
         out[f"pi.net.mlp.0.{p}"] = f"action_net.{p}"
         out[f"vf.net.mlp.0.{p}"] = f"value_net.{p}"
     return out
