@@ -154,4 +154,5 @@ def test_trained_on_local_ray_and_evaluated(tmp_path):
     evaluate.main(["--model", str(run_dir), "--n-episodes", "3", "--seed", "5000",
                    "--no-plots", "--out", str(out)])
     results = yaml.safe_load((out / "results.yml").read_text())
-    assert results["n_episodes"] == 3, results.keys()
+    assert results["summary"]["n_episodes"] == len(results["episodes"]) == 3
+    assert results["benchmark"] is True and results["policy"] == str(run_dir)
