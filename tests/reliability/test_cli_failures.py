@@ -80,6 +80,8 @@ def _cases(tmp: Path) -> list[tuple[str, list[str], str]]:
         ("agents.learning_curves", [str(tmp), "--out", UNWRITABLE + ".png"], "not writable"),
         ("agents.learning_curves", [str(tmp), "--out", str(curve)], "not a run directory"),
         ("agents.bench_train", ["--steps", "0"], "--steps"),
+        ("agents.rllib_train", ["--env", "SoftHandReorient-v0", "--num-env-runners", "-1",
+                                "--stop-timesteps", "10"], "--num-env-runners"),
         ("softhand_env.figures", ["contact", "--out", UNWRITABLE], "not writable"),
         ("softhand_env.figures", ["contact", "--out", str(figures)], "pass --force"),
         ("softhand_env.figures", ["dynamics", "--config", str(tmp / "none.yml"),
