@@ -123,7 +123,6 @@ def main(argv: Sequence[str] | None = None) -> Path:
     from agents.sb3.training import next_run_dir
     from softhand_env.envs.signature import env_signature
 
-    run_dir = next_run_dir(Path(args.out), "ppo", args.env, None)
     config = run_config(args, settings, hp)
     probe = make_env(args.env, hp["env_kwargs"], hp.get("env_wrapper"))
     config.record.env_signature = env_signature(probe)  # checked when the model is loaded
@@ -155,8 +154,7 @@ def main(argv: Sequence[str] | None = None) -> Path:
              "envs_per_runner": args.envs_per_runner, "cluster_cpus": cpus,
              "ray": ray.__version__, "machine_cpus": os.cpu_count()},
         rllib={**asdict(settings), "hidden": list(settings.hidden)})
-    if run_dir.exists():
-        raise UserError(f"run directory {run_dir} exists (created meanwhile)")
+    run_dir = next_run_dir(Path(args.out), "ppo", args.env, None)  # numbered when written
     zip_path = write_run(run_dir, config, weights, obs_filter, progress.env_steps)
     print(f"saved: {zip_path} ({progress.wall_s:.1f} s, {progress.env_steps} env steps); "
           f"play it with python -m agents.evaluate --model {run_dir}")

@@ -175,6 +175,7 @@ def module_weights(algo: Any) -> dict[str, Any]:
 def filter_state(algo: Any) -> dict[str, Any] | None:
     """State of the local env runner's ``MeanStdFilter`` (merged from every runner after each
     iteration), or None if observations are not filtered."""
-    pipeline = algo.env_runner._env_to_module
-    state = pipeline.get_state()
+    from ray.rllib.core import COMPONENT_ENV_TO_MODULE_CONNECTOR as CONNECTOR
+
+    state = algo.env_runner.get_state(components=CONNECTOR)[CONNECTOR]
     return state.get("MeanStdFilter")
