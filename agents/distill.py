@@ -65,11 +65,11 @@ from agents.sb3.training import (
     build,
     make_parser,
     next_run_dir,
+    probe_signature,
     resolve_config,
     start_from,
 )
 from softhand_env.envs.observation import ObservationLayout
-from softhand_env.envs.signature import env_signature
 
 #: Dict-observation key of the blind part (what the student reads).
 BLIND_KEY = "observation"
@@ -465,9 +465,7 @@ def main(argv: Sequence[str] | None = None) -> Path:
     teacher = ModelPolicy(args.teacher)
     kwargs, teacher_kwargs = check_pair(teacher, args.env, hp)
     wrapper = config.env_wrapper
-    probe = make_env(args.env, kwargs, wrapper)
-    rec.env_signature = env_signature(probe)
-    probe.close()
+    rec.env_signature = probe_signature(args.env, kwargs, wrapper, args.seed)
     plain = {k: v for k, v in kwargs.items() if k not in VIEW_KEYS}
     teacher_env = make_env(args.env, {**plain, **teacher_kwargs, "privileged_obs": True},
                            teacher.env_wrapper)  # the spaces of the teacher's view

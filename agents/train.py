@@ -36,7 +36,7 @@ from typing import Any
 from stable_baselines3.common.callbacks import CheckpointCallback, EvalCallback
 
 from agents.common.cli import UserError, check_run_location, run_cli
-from agents.common.env_factory import make_env, task_targets
+from agents.common.env_factory import task_targets
 from agents.common.metrics import error_score, final_errors, summarize, summary_success_text
 from agents.runs.layout import BEST_MODEL
 from agents.runs.normalization import save_stats
@@ -48,10 +48,10 @@ from agents.sb3.training import (
     build,
     make_parser,
     next_run_dir,
+    probe_signature,
     resolve_config,
     start_from,
 )
-from softhand_env.envs.signature import env_signature
 
 
 def parse_args(argv: Sequence[str] | None = None) -> TrainSettings:
@@ -199,9 +199,9 @@ def main(argv: Sequence[str] | None = None) -> Path:
         raise UserError(f"run directory {run_dir} exists (choose another --run-name)")
     config = resolve_config(args)
     hp, rec = config.hyperparams, config.record
-    probe = make_env(args.env, config.env_kwargs, config.env_wrapper)
-    rec.env_signature = env_signature(probe)  # checked when the model is loaded
-    probe.close()
+    # checked when the model is loaded; the grasp phase is tried here, before the run exists
+    rec.env_signature = probe_signature(args.env, config.env_kwargs, config.env_wrapper,
+                                        args.seed)
     model, eval_env = build(config, verbose=args.verbose)
     if args.trained_agent is not None:
         start_from(model, args.trained_agent, rec)

@@ -3,10 +3,10 @@
 :func:`load_hyperparams` reads ``agents/configs/<algo>.yml`` (installed with the
 package) or the ``--conf-file`` given: a mapping keyed by env id, YAML anchors and merge keys
 allowed, read with the bounds of :func:`softhand_env.physics.safe_yaml.load_bounded` (at most
-1 MB, read before parsing; nesting and the alias-expanded size bounded). The files are written in RL Zoo's
-dialect, so ``python -m rl_zoo3.train --gym-packages softhand_env --conf-file <file>`` reads
-them unchanged: ``policy_kwargs`` as a ``"dict(...)"`` string (read here without ``eval``,
-:mod:`agents.runs.zoo_dialect`), ``lin_<v>`` linear schedules.
+1 MB, read before parsing; nesting and the alias-expanded size bounded). The files are
+written in RL Zoo's dialect, so ``python -m rl_zoo3.train --gym-packages softhand_env
+--conf-file <file>`` reads them unchanged: ``policy_kwargs`` as a ``"dict(...)"`` string
+(read here without ``eval``, :mod:`agents.runs.zoo_dialect`), ``lin_<v>`` linear schedules.
 :func:`algo_kwargs` turns an entry into algorithm keywords.
 """
 

@@ -231,3 +231,22 @@ def test_conf_file_anchors_and_merge_keys_within_the_bounds_are_read(tmp_path):
         load_bounded(just.replace("b: [", "b: [*a, *a, *a, "), aliases=True)
     with pytest.raises(ValueError, match="aliases are not allowed"):
         load_bounded(just)  # model configs: no aliases at all
+
+
+@pytest.mark.filterwarnings("ignore:RK4 step dt:RuntimeWarning")  # the hand's stability warning
+@pytest.mark.parametrize("command", ["train", "evaluate"])
+def test_a_hand_whose_grasp_phase_fails_is_one_line_before_any_output(tmp_path, capsys,
+                                                                      command):
+    """``hand_overrides: {Kd: 1e6}`` given on purpose (train's --env-kwargs, evaluate's
+    --task-kwargs): the grasp phase fails; PhysicsError as one line, exit 2, and no run
+    directory or results (train tries the first reset before creating the run)."""
+    over = "hand_overrides:{Kd: 1.0e+6}"
+    if command == "train":
+        _exit_2(capsys, train.main, TRAIN + ["--env-kwargs", over, "--log-folder",
+                                             str(tmp_path / "logs")], "PhysicsError")
+        assert not (tmp_path / "logs").exists()
+    else:
+        _exit_2(capsys, evaluate.main, ["--model", "SoftHandTranslate-v0", "--n-episodes", "1",
+                                        "--task-kwargs", over, "--out", str(tmp_path / "o")],
+                "PhysicsError")
+        assert not (tmp_path / "o").exists()
