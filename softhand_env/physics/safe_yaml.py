@@ -49,7 +49,7 @@ def _check_events(loader: yaml.SafeLoader, source: str, aliases: bool = False) -
     def add(size: int, height: int) -> None:
         nonlocal nodes
         nodes += size
-        if nodes > MAX_EXPANDED_NODES:
+        if aliases and nodes > MAX_EXPANDED_NODES:  # without aliases: the size bound
             raise ValueError(f"{source}: YAML expands to more than {MAX_EXPANDED_NODES} nodes "
                              "(aliases)")
         if depth + height > MAX_DEPTH:

@@ -233,6 +233,18 @@ def test_conf_file_anchors_and_merge_keys_within_the_bounds_are_read(tmp_path):
         load_bounded(just)  # model configs: no aliases at all
 
 
+def test_node_count_bounds_only_documents_with_aliases(monkeypatch):
+    """Without aliases the byte size bounds a document; the expanded-node bound is for the
+    files that may use aliases."""
+    from softhand_env.physics import safe_yaml
+
+    monkeypatch.setattr(safe_yaml, "MAX_EXPANDED_NODES", 10)
+    text = "[" + ", ".join(["1"] * 20) + "]"
+    assert safe_yaml.load_bounded(text) == [1] * 20
+    with pytest.raises(ValueError, match="more than 10 nodes"):
+        safe_yaml.load_bounded(text, aliases=True)
+
+
 @pytest.mark.filterwarnings("ignore:RK4 step dt:RuntimeWarning")  # the hand's stability warning
 @pytest.mark.parametrize("command", ["train", "evaluate"])
 def test_a_hand_whose_grasp_phase_fails_is_one_line_before_any_output(tmp_path, capsys,
