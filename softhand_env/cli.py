@@ -19,7 +19,8 @@ code passes it to ``sys.exit``).
 :class:`ArgumentParser` turns argparse's usage errors into :class:`CliError`;
 :func:`check_output_dir` / :func:`check_output_file` check an output location before any
 work (not a file where a directory is meant, no earlier output overwritten without
-``--force``, writable), creating nothing.
+``--force``, writable), creating nothing. :func:`parse_kv` reads ``key:value`` command-line
+items (``--env-kwargs``) with the bounded YAML loader.
 """
 
 from __future__ import annotations
@@ -153,3 +154,21 @@ def check_output_file(out: str | Path, force: bool, what: str = "--out") -> Path
     _probe_writable(path.parent, what)
     return path
 
+
+
+def parse_kv(items: Sequence[str] | None, what: str = "--env-kwargs") -> dict[str, Any]:
+    """``["k:v", ...]`` -> dict, each value parsed as YAML (``0.5``, ``true``, ``[6, 6]``) with the
+    bounds of :func:`softhand_env.physics.safe_yaml.load_bounded` (no aliases, depth, size);
+    :class:`CliError` naming ``what`` for an item without ``key:`` or an unreadable value."""
+    from softhand_env.physics.safe_yaml import load_bounded
+
+    out: dict[str, Any] = {}
+    for item in items or ():
+        key, sep, value = item.partition(":")
+        if not sep or not key:
+            raise CliError(f"{what} expects key:value items (got {item[:80]!r})")
+        try:
+            out[key] = load_bounded(value, source=f"{what} {key[:80]!r}")
+        except ValueError as exc:
+            raise CliError(str(exc)) from None
+    return out

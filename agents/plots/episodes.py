@@ -15,6 +15,7 @@ from typing import Any
 
 import numpy as np
 
+from agents.play.test_scores import TEST_SEED, VALIDATION_SEED, plays_test_goals
 from softhand_env.figures.overlay import annotate_episode
 
 #: Object motion counted as one unit when choosing an episode to animate: 1 mm in x, 1 deg in
@@ -24,10 +25,20 @@ MOTION_UNITS = (1e-3, math.radians(1.0))
 
 def evaluation_title(env_id: str, policy: str, n_episodes: int, seed: int,
                      targets: Sequence[str]) -> str:
-    """Title of an evaluation: env, policy and what was played (goals, or goal-free episodes)."""
+    """Title of an evaluation: env, policy and what was played (goals, or goal-free episodes).
+    The goals are called test goals when the set meets the test family
+    (:func:`agents.play.test_scores.plays_test_goals`), validation goals when it lies within
+    the validation seeds (from :data:`~agents.play.test_scores.VALIDATION_SEED` up to the test
+    family), else goals."""
     seeds = f"seed {seed}" if n_episodes == 1 else f"seeds {seed}..{seed + n_episodes - 1}"
     if targets:
-        goals = "1 test goal" if n_episodes == 1 else f"{n_episodes} test goals"
+        if plays_test_goals(seed, n_episodes, None):
+            family = "test "
+        elif VALIDATION_SEED <= seed and seed + n_episodes <= TEST_SEED:
+            family = "validation "
+        else:
+            family = ""
+        goals = f"1 {family}goal" if n_episodes == 1 else f"{n_episodes} {family}goals"
         return f"{env_id}, {policy} policy, {goals} ({seeds})"
     runs = "1 episode" if n_episodes == 1 else f"{n_episodes} episodes"
     return f"{env_id}, {policy} policy, {runs} without a goal ({seeds})"

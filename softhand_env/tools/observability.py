@@ -3,6 +3,8 @@
 ::
 
     python -m softhand_env.tools.observability --env SoftHandPose-v0
+    python -m softhand_env.tools.observability --env SoftHandPose-v1 --obs-mode proprio_tactile
+    python -m softhand_env.tools.observability --env SoftHandPose-v0 --sensor-model realistic
     python -m softhand_env.tools.observability --env SoftHandPoseRandom-v0 \\
         --env-kwargs obs_mode:proprio_tactile obs_noise:0 --frames 1 4 --episodes 40
 
@@ -15,7 +17,14 @@ frame repeats before the episode start, as the env's ``history_len`` does) to th
 prints a table: RMSE of x and y (mm) and theta (deg) on the held-out frames, and the fraction
 of held-out frames whose x is within 1 mm AND theta within 1 deg (the benchmark's success
 tolerances). The row ``mean`` predicts the training mean pose: the spread the frames have to
-explain.
+explain. The title line names the sensing the frames were read with: the sensor model
+(``--sensor-model``, default the id's: ``ideal`` on ``-v0``, ``realistic`` on ``-v1``;
+:mod:`softhand_env.envs.sensors`), the observation mode (``--obs-mode``, default the id's
+``proprio``) and the observation noise (``obs_noise``, scaled units; the ``Random`` ids' preset
+0.01; ``--sensor-model ideal`` on a ``Random`` ``-v1`` id also turns its per-episode sensor
+gains off). ``--env-kwargs KEY:VALUE`` sets any other ``gym.make`` keyword (values as YAML, read
+with the bounded loader); a keyword given both ways is refused. A wrong input is one line
+``error: ...`` on stderr and exit code 2 (:func:`softhand_env.cli.run_cli`).
 
 Policies (both read nothing of the object; the tool may read the env, the regressor only sees
 the frames):
@@ -39,13 +48,16 @@ check that the table measures information in the frames.
 
 from __future__ import annotations
 
-import argparse
 import math
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
+
+from softhand_env.cli import ArgumentParser, CliError, one_line, parse_kv, run_cli
+from softhand_env.envs.observation import OBS_MODES
+from softhand_env.envs.sensors import SENSOR_MODELS
 
 #: Success tolerances of the benchmark: x (m) and theta (rad).
 X_TOL = 1e-3
@@ -101,11 +113,15 @@ class Episodes:
     poses : list of ndarray, shape (T_k + 1, 3)
         True object pose (x, y, theta; m, m, rad) of the same instants.
     frame_size : int
+    sensing : dict
+        The sensing of the frames, as the env was built: ``sensor_model``, ``obs_mode``,
+        ``obs_noise`` (scaled units) and ``rand_sensors`` (per-episode torque-sensor gains).
     """
 
     frames: list[np.ndarray]
     poses: list[np.ndarray]
     frame_size: int
+    sensing: dict[str, Any] = field(default_factory=dict)
 
 
 def collect(env_id: str, env_kwargs: dict[str, Any] | None = None, episodes: int = 40,
@@ -116,14 +132,18 @@ def collect(env_id: str, env_kwargs: dict[str, Any] | None = None, episodes: int
     import gymnasium as gym
 
     import softhand_env  # noqa: F401  (registers the ids)
+    from softhand_env.envs import ENV_IDS
 
     if policy not in POLICIES:
         raise ValueError(f"policy must be one of {POLICIES} (got {policy!r})")
+    if env_id not in ENV_IDS:
+        raise ValueError(f"{env_id!r} is not a soft-hand id (ids: {', '.join(ENV_IDS)})")
     kw = {**(env_kwargs or {}), "history_len": 1}
     if policy == "scripted":
         kw.update(action_mode="absolute", normalize_action=False)
     env = gym.make(env_id, **kw)
     f = env.unwrapped.config.layout.frame_size  # type: ignore[attr-defined]
+    sensing = sensing_of(env.unwrapped)
     dt = float(env.unwrapped.dt)  # type: ignore[attr-defined]
     frames, poses = [], []
     for k in range(episodes):
@@ -144,7 +164,25 @@ def collect(env_id: str, env_kwargs: dict[str, Any] | None = None, episodes: int
         frames.append(np.array(fr))
         poses.append(np.array(po))
     env.close()
-    return Episodes(frames, poses, f)
+    return Episodes(frames, poses, f, sensing)
+
+
+def sensing_of(env: Any) -> dict[str, Any]:
+    """The sensing of a soft-hand env (``env.unwrapped``): ``sensor_model``, ``obs_mode``,
+    ``obs_noise`` (the standard deviation in scaled units the env adds, the preset resolved)
+    and ``rand_sensors``."""
+    cfg, options = env.config, env.options
+    return {"sensor_model": options.sensor_model, "obs_mode": options.obs_mode,
+            "obs_noise": float(cfg.randomization.obs_noise),
+            "rand_sensors": bool(cfg.rand_sensors)}
+
+
+def sensing_text(sensing: dict[str, Any]) -> str:
+    """``"sensor_model realistic, obs_mode proprio, obs_noise 0.01, rand_sensors"``: the
+    sensing of :func:`sensing_of` as the table's title shows it."""
+    text = (f"sensor_model {sensing['sensor_model']}, obs_mode {sensing['obs_mode']}, "
+            f"obs_noise {sensing['obs_noise']:g}")
+    return text + (", rand_sensors" if sensing.get("rand_sensors") else "")
 
 
 def stack_frames(frames: np.ndarray, k: int) -> np.ndarray:
@@ -169,8 +207,8 @@ def _torch() -> Any:
     try:
         import torch
     except ImportError:
-        raise SystemExit("softhand_env.tools.observability needs PyTorch "
-                         "(pip install 'softhand-env[train]')") from None
+        raise CliError("softhand_env.tools.observability needs PyTorch "
+                       "(pip install 'softhand-env[train]')") from None
     return torch
 
 
@@ -293,28 +331,39 @@ def format_table(title: str, rows: Sequence[Row]) -> str:
     return "\n".join(lines)
 
 
-def _parse_kv(items: Sequence[str] | None) -> dict[str, Any]:
-    import yaml
-
-    out: dict[str, Any] = {}
-    for item in items or ():
-        key, sep, value = item.partition(":")
-        if not sep or not key:
-            raise SystemExit(f"--env-kwargs expects key:value items (got {item!r})")
-        try:
-            out[key] = yaml.safe_load(value)
-        except yaml.YAMLError:
-            raise SystemExit(f"--env-kwargs: cannot parse the value of {item!r}") from None
-    return out
+def env_kwargs(items: Sequence[str] | None, sensor_model: str | None = None,
+               obs_mode: str | None = None) -> dict[str, Any]:
+    """The ``gym.make`` keywords of the command line: the ``--env-kwargs`` items (YAML values,
+    :func:`softhand_env.cli.parse_kv`) with ``--sensor-model`` and ``--obs-mode`` (None: the
+    id's); ``--sensor-model ideal`` also sets ``rand_sensors=False`` (ideal read-outs have no
+    gains to draw; the ``Random`` ``-v1`` ids draw them) unless ``--env-kwargs`` sets it.
+    :class:`~softhand_env.cli.CliError` for a keyword given both ways."""
+    kwargs = parse_kv(items, "--env-kwargs")
+    for key, value in (("sensor_model", sensor_model), ("obs_mode", obs_mode)):
+        if value is None:
+            continue
+        if key in kwargs:
+            raise CliError(f"{key} is given twice (--{key.replace('_', '-')} and --env-kwargs "
+                           f"{key}:...); give it once")
+        kwargs[key] = value
+    if sensor_model == "ideal":  # no sensor gains to draw (the Random -v1 ids draw them)
+        kwargs.setdefault("rand_sensors", False)
+    return kwargs
 
 
 def main(argv: Sequence[str] | None = None) -> int:
     """Command-line entry point; prints the table."""
-    ap = argparse.ArgumentParser(prog="python -m softhand_env.tools.observability",
-                                 description=__doc__.splitlines()[0])
+    ap = ArgumentParser(prog="python -m softhand_env.tools.observability",
+                        description=__doc__.splitlines()[0])
     ap.add_argument("--env", required=True, help="registered id, e.g. SoftHandPose-v0")
+    ap.add_argument("--sensor-model", choices=SENSOR_MODELS, default=None,
+                    help="sensing of the frames (default: the id's; ideal on -v0, realistic "
+                         "on -v1)")
+    ap.add_argument("--obs-mode", choices=OBS_MODES, default=None,
+                    help="observation mode (default: the id's, proprio); proprio_tactile adds "
+                         "the fingertip deformations")
     ap.add_argument("--env-kwargs", nargs="*", default=[], metavar="KEY:VALUE",
-                    help="gym.make keywords, values as YAML (obs_noise:0.003)")
+                    help="other gym.make keywords, values as YAML (obs_noise:0.003)")
     ap.add_argument("--frames", type=int, nargs="+", default=[1, 4],
                     help="stacked frames of each regressor (default 1 4)")
     ap.add_argument("--episodes", type=int, default=40, help="episodes (default 40)")
@@ -337,22 +386,30 @@ def main(argv: Sequence[str] | None = None) -> int:
         ap.error("--max-steps must be >= 1")
     if args.seed < 0:
         ap.error("--seed must be >= 0")
+    kwargs = env_kwargs(args.env_kwargs, args.sensor_model, args.obs_mode)
     _torch()
-    kwargs = _parse_kv(args.env_kwargs)
     try:
         data = collect(args.env, kwargs, args.episodes, args.policy, args.seed, args.max_steps)
-    except (TypeError, ValueError) as exc:
-        raise SystemExit(f"cannot roll out {args.env} {kwargs}: {exc}") from None
+    except (TypeError, ValueError, gym_error()) as exc:
+        raise CliError(f"cannot roll out {args.env} {kwargs}: {one_line(exc)}") from None
     rows = observability(data, args.frames, args.held_out, args.seed, args.hidden, args.epochs,
                          args.shuffle_labels)
     n = sum(len(p) for p in data.poses)
-    shown = " ".join(args.env_kwargs) or "defaults"
-    title = (f"{args.env} ({shown}), {args.policy} policy, {args.episodes} episodes "
+    shown = " ".join(f"{k}:{v}" for k, v in kwargs.items()) or "the id's keywords"
+    title = (f"{args.env} ({shown}; {sensing_text(data.sensing)}), {args.policy} policy, "
+             f"{args.episodes} episodes "
              f"({n} frames), {rows[0].n_frames} held-out frames"
              + (", training labels shuffled" if args.shuffle_labels else ""))
     print(format_table(title, rows))
     return 0
 
 
+def gym_error() -> type[Exception]:
+    """Gymnasium's base error (an unknown id, a missing dependency)."""
+    import gymnasium.error
+
+    return gymnasium.error.Error
+
+
 if __name__ == "__main__":
-    raise SystemExit(main())
+    raise SystemExit(run_cli(main))

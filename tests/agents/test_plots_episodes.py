@@ -28,7 +28,14 @@ def test_titles_say_what_was_played():
         "SoftHand-v0, paper policy, 1 episode without a goal (seed 10000)")
     assert evaluation_title("SoftHandPose-v0", "ppo", 20, 10000, ("x", "theta")) == (
         "SoftHandPose-v0, ppo policy, 20 test goals (seeds 10000..10019)")
-    assert "1 test goal (seed 5)" in evaluation_title("SoftHandTranslate-v0", "ppo", 1, 5, ("x",))
+    # the goal family is named from the seeds: test, validation, or neither
+    assert "1 goal (seed 5)" in evaluation_title("SoftHandTranslate-v0", "ppo", 1, 5, ("x",))
+    assert "5 validation goals (seeds 5000..5004)" in evaluation_title(
+        "SoftHandTranslate-v0", "ppo", 5, 5000, ("x",))
+    assert "2 test goals (seeds 9999..10000)" in evaluation_title(
+        "SoftHandTranslate-v0", "ppo", 2, 9999, ("x",))
+    assert "1 validation goal (seed 9999)" in evaluation_title(
+        "SoftHandTranslate-v0", "ppo", 1, 9999, ("x",))
 
 
 def test_the_animated_episode_is_the_successful_one_that_moves_most():

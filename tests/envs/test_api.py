@@ -174,6 +174,12 @@ def test_v1_ids_mirror_the_v0_ids():
         assert gym.spec(v0).reward_threshold == gym.spec(v1).reward_threshold
         assert gym.make(v0).unwrapped.options.sensor_model == "ideal"
         assert gym.make(v1).unwrapped.options.sensor_model == "realistic"
+        # -v0 keeps its keywords (none of v1's); -v1 is -v0 plus exactly v1's keywords
+        k0, k1 = gym.spec(v0).kwargs, gym.spec(v1).kwargs
+        v1_only = {**V1_KWARGS, **(V1_RANDOM_KWARGS if "Random" in v0 else {})}
+        assert not set(k0) & set(v1_only) and "integrator" not in k0.get("hand_overrides", {})
+        hand = {**k0.get("hand_overrides", {}), **V1_HAND_OVERRIDES}
+        assert k1 == {**k0, **v1_only, "hand_overrides": hand}
 
 
 def test_manual_ids_table_matches_registry():
@@ -617,3 +623,24 @@ def test_a_failed_step_is_never_a_success():
     batch = task.evaluate(tuple(np.full(3, v) for v in pose), goal, np.zeros(3),
                           np.array([False, True, False]), np.array([True, True, False]))[1]
     np.testing.assert_array_equal(batch, [True, False, False])
+
+
+def test_version_history_lists_every_semantic_change():
+    """The Version History names the semantic changes of the issue's list: slip termination
+    on by default, ``is_success`` False on a failed step, and v1 with each of its keywords
+    (:data:`V1_KWARGS`, :data:`V1_HAND_OVERRIDES`, :data:`V1_RANDOM_KWARGS`)."""
+    history = SoftHandEnv.__doc__.split("## Version History", 1)[1]
+    history = " ".join(history.split())
+    assert "terminate_on_slip=True`` by default" in history
+    assert "``is_success`` is False on a failed step" in history
+    v1 = history[history.index("- v1:"):]
+
+    def shown(value):
+        return f'"{value}"' if isinstance(value, str) else (
+            f"{value:g}" if isinstance(value, float) else str(value))
+
+    for key, value in {**V1_KWARGS, **V1_RANDOM_KWARGS}.items():
+        assert f"{key}={shown(value)}" in v1, (key, value)
+    for key, value in V1_HAND_OVERRIDES.items():
+        assert f'hand_overrides={{"{key}": {shown(value)}}}' in v1, (key, value)
+    assert "``-v0`` ids keep the semantics above" in v1

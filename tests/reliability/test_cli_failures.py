@@ -102,6 +102,13 @@ def _cases(tmp: Path) -> list[tuple[str, list[str], str]]:
         ("softhand_env.tools.bench", ["--repeat", "0"], "--repeat"),
         ("softhand_env.tools.bench_env", ["--id", "CarRacing-v3"], "CarRacing-v3"),
         ("softhand_env.tools.bench_quasistatic", ["--repeat", "0"], "--repeat"),
+        ("softhand_env.tools.observability", ["--env", "SoftHandPose-v1", "--sensor-model",
+                                              "exact"], "invalid choice: 'exact'"),
+        ("softhand_env.tools.observability", ["--env", "SoftHandPose-v1", "--obs-mode",
+                                              "proprio", "--env-kwargs", "obs_mode:proprio"],
+         "obs_mode is given twice"),
+        ("softhand_env.tools.observability", ["--env", "CarRacing-v3", "--episodes", "2"],
+         "CarRacing-v3"),
     ]
 
 

@@ -9,6 +9,9 @@ import pytest
 
 pytest.importorskip("torch")
 
+from softhand_env.cli import CliError  # noqa: E402
+from softhand_env.envs.observation import ANGLE_SCALE  # noqa: E402
+from softhand_env.envs.sensors import load_sensor_spec  # noqa: E402
 from softhand_env.tools import observability as ob  # noqa: E402
 
 SMALL = {"episodes": 8, "max_steps": 60}
@@ -91,10 +94,63 @@ def test_random_policy_and_cli(capsys):
 
 
 def test_cli_errors():
-    with pytest.raises(SystemExit):
+    with pytest.raises(CliError, match="--episodes must be >= 2"):
         ob.main(["--env", "SoftHandPose-v0", "--episodes", "1"])
-    with pytest.raises(SystemExit, match="key:value"):
+    with pytest.raises(CliError, match="key:value"):
         ob.main(["--env", "SoftHandPose-v0", "--env-kwargs", "obs_noise"])
-    with pytest.raises(SystemExit, match="cannot roll out"):
+    with pytest.raises(CliError, match="cannot roll out"):
         ob.main(["--env", "SoftHandPose-v0", "--env-kwargs", "obs_mode:vision",
                  "--episodes", "2"])
+    with pytest.raises(CliError, match="invalid choice: 'exact'"):
+        ob.main(["--env", "SoftHandPose-v1", "--sensor-model", "exact"])
+    with pytest.raises(CliError, match="invalid choice: 'vision'"):
+        ob.main(["--env", "SoftHandPose-v1", "--obs-mode", "vision"])
+    with pytest.raises(CliError, match="sensor_model is given twice"):
+        ob.main(["--env", "SoftHandPose-v1", "--sensor-model", "ideal",
+                 "--env-kwargs", "sensor_model:realistic"])
+
+
+def test_sensing_options_become_env_keywords():
+    assert ob.env_kwargs(["obs_noise:0.01"]) == {"obs_noise": 0.01}
+    assert ob.env_kwargs([], "realistic", "proprio_tactile") == {
+        "sensor_model": "realistic", "obs_mode": "proprio_tactile"}
+    # ideal read-outs have no gains to draw: the Random -v1 ids' rand_sensors goes off, unless
+    # the user sets it
+    assert ob.env_kwargs([], "ideal") == {"sensor_model": "ideal", "rand_sensors": False}
+    assert ob.env_kwargs(["rand_sensors:true"], "ideal")["rand_sensors"] is True
+
+
+def test_sensor_model_changes_the_frames_not_the_episodes():
+    """The same seeded walk on SoftHandPose-v1 read with realistic and with ideal sensing:
+    the object moves the same (the sensor model draws after the physics), the frames differ
+    by the sensors' errors (angles quantised to 360/4096 deg in scaled units), and the
+    episodes record their sensing."""
+    kw = {"episodes": 2, "policy": "scripted", "seed": 7, "max_steps": 15}
+    real = ob.collect("SoftHandPose-v1", None, **kw)
+    ideal = ob.collect("SoftHandPose-v1", {"sensor_model": "ideal"}, **kw)
+    tactile = ob.collect("SoftHandPose-v1", {"obs_mode": "proprio_tactile"}, **kw)
+    assert real.sensing == {"sensor_model": "realistic", "obs_mode": "proprio",
+                            "obs_noise": 0.0, "rand_sensors": False}
+    assert ideal.sensing["sensor_model"] == "ideal"
+    assert tactile.sensing["obs_mode"] == "proprio_tactile" and tactile.frame_size == 12
+    for a, b in zip(real.poses, ideal.poses, strict=True):
+        np.testing.assert_array_equal(a, b)
+    diff = np.abs(np.vstack(real.frames) - np.vstack(ideal.frames))
+    assert diff.max() > 1e-4
+    # the angle entries (first two, theta / ANGLE_SCALE, float32) of a realistic frame are
+    # whole encoder counts; the ideal ones are not
+    count = math.radians(load_sensor_spec("realistic").encoder_resolution_deg)
+    counts = np.vstack(real.frames)[:, :2] * ANGLE_SCALE / count
+    np.testing.assert_allclose(counts, np.round(counts), atol=1e-3)
+    exact = np.vstack(ideal.frames)[:, :2] * ANGLE_SCALE / count
+    assert np.abs(exact - np.round(exact)).max() > 0.1
+    assert "sensor_model realistic, obs_mode proprio, obs_noise 0" == ob.sensing_text(real.sensing)
+
+
+def test_cli_sensing_in_the_title(capsys):
+    assert ob.main(["--env", "SoftHandPoseRandom-v1", "--obs-mode", "proprio_tactile",
+                    "--episodes", "3", "--max-steps", "10", "--epochs", "2", "--hidden", "8",
+                    "--frames", "1"]) == 0
+    out = capsys.readouterr().out
+    assert ("SoftHandPoseRandom-v1 (obs_mode:proprio_tactile; sensor_model realistic, "
+            "obs_mode proprio_tactile, obs_noise 0.01, rand_sensors)") in out
