@@ -10,6 +10,13 @@ end-to-end frames (env steps) per second of ``model.learn`` (rollouts, VecNormal
   it: many environments stepped in one batched call, fewer epochs over larger minibatches
   (``--native-*`` options; defaults below).
 
+* ``rllib`` (with ``--rllib``; needs ``softhand-env[rllib]``): the same entry translated to
+  RLlib PPO (:mod:`agents.rllib.settings`: its network, coefficients and train batch of
+  n_envs x n_steps env steps, observations through RLlib's filter, no reward normalisation)
+  on a local Ray of ``--rllib-env-runners`` env runners of ``--rllib-envs-per-runner`` envs,
+  the learner in this process; one iteration runs before the clock starts (it starts the
+  runners' envs), then whole iterations until ``--steps`` env steps.
+
 The last line is ``native/dummy fps ratio: <float>``. The environments are built and their
 kernels compiled before the clock starts; the load average of the machine is printed, since
 the figures are only meaningful relative to it. Timing is reported, never asserted.
@@ -52,10 +59,15 @@ def parse_args(argv: Sequence[str] | None = None) -> argparse.Namespace:
     p.add_argument("--native-numba-threads", type=int, default=None,
                    help="threads of the batched physics (default: numba's, one per core)")
     p.add_argument("--dummy-torch-threads", type=int, default=1)
+    p.add_argument("--rllib", action="store_true",
+                   help="also train with RLlib PPO (softhand-env[rllib]) on a local Ray")
+    p.add_argument("--rllib-env-runners", type=int, default=2, metavar="K")
+    p.add_argument("--rllib-envs-per-runner", type=int, default=8, metavar="M")
     args = p.parse_args(argv)
     if args.native_numba_threads is not None and args.native_numba_threads < 1:
         p.error("--native-numba-threads must be >= 1")
-    for key in ["steps", *(f"native_{k}" for k in NATIVE_DEFAULTS), "dummy_torch_threads"]:
+    for key in ["steps", *(f"native_{k}" for k in NATIVE_DEFAULTS), "dummy_torch_threads",
+                "rllib_env_runners", "rllib_envs_per_runner"]:
         if getattr(args, key) < 1:
             p.error(f"--{key.replace('_', '-')} must be >= 1")
     check_range("--steps", args.steps, 1, 10**9)
@@ -111,6 +123,50 @@ def run_ppo(env_id: str, hp: dict[str, Any], vec_env: str, steps: int, seed: int
     }
 
 
+def run_rllib(env_id: str, hp: dict[str, Any], steps: int, seed: int, runners: int,
+              envs_per_runner: int) -> dict[str, Any]:
+    """RLlib PPO of ``hp`` (a ppo.yml entry) on a local Ray of ``runners`` CPUs: one warm-up
+    iteration, then whole iterations timed until ``steps`` env steps. Returns a row of the
+    table (``n_envs``: all runners' envs; ``n_steps``: env steps per env and iteration)."""
+    import ray
+
+    from agents.play.sharding import LOCAL, cluster_cpus
+    from agents.rllib.algorithm import (
+        TORCH_THREADS,
+        Sampling,
+        TrainProgress,
+        build_algorithm,
+        require_rllib,
+        train_until,
+    )
+    from agents.rllib.settings import ppo_settings
+
+    require_rllib("--rllib")
+    settings = ppo_settings(hp)
+    started = not ray.is_initialized()
+    cluster_cpus(LOCAL, runners, flag="--rllib")
+    algo = build_algorithm(settings, Sampling(env_id, dict(hp["env_kwargs"]),
+                                              hp.get("env_wrapper"), runners,
+                                              envs_per_runner, seed))
+    try:
+        warm = train_until(algo, 1)
+        timed = train_until(algo, warm.env_steps + steps,
+                            TrainProgress(env_steps=warm.env_steps))
+    finally:
+        algo.stop()
+        if started:
+            ray.shutdown()
+    done = timed.env_steps - warm.env_steps
+    n_envs = max(1, runners) * envs_per_runner
+    return {
+        "vec_env": "rllib", "n_envs": n_envs,
+        "n_steps": settings.train_batch_size // n_envs,
+        "batch_size": settings.minibatch_size, "n_epochs": settings.num_epochs,
+        "threads": f"{TORCH_THREADS}/-", "steps": done, "wall_s": timed.wall_s,
+        "fps": done / timed.wall_s,
+    }
+
+
 def table(rows: list[dict[str, Any]]) -> str:
     """Markdown table of the runs."""
     cols = ["vec_env", "n_envs", "n_steps", "batch_size", "n_epochs", "threads", "steps",
@@ -126,6 +182,10 @@ def table(rows: list[dict[str, Any]]) -> str:
 def main(argv: Sequence[str] | None = None) -> float:
     """Run both trainings, print the table and the ratio; returns the ratio."""
     args = parse_args(argv)
+    if args.rllib:
+        from agents.rllib.algorithm import require_rllib
+
+        require_rllib("--rllib")  # before any run
     import softhand_env  # noqa: F401  (registers the environments)
     from agents.runs.hyperparams import load_hyperparams
 
@@ -143,9 +203,16 @@ def main(argv: Sequence[str] | None = None) -> float:
         run_ppo(args.env, native_hp, "native", args.steps, args.seed,
                 args.native_torch_threads, args.native_numba_threads),
     ]
+    if args.rllib:
+        rows.append(run_rllib(args.env, hp, args.steps, args.seed, args.rllib_env_runners,
+                              args.rllib_envs_per_runner))
     print(table(rows))
-    print("threads = torch / numba (the batched physics of the native env)")
+    print("threads = torch / numba (the batched physics of the native env); rllib: "
+          f"{args.rllib_env_runners} env runners (one CPU each) x "
+          f"{args.rllib_envs_per_runner} envs, torch threads of the learner and of each runner")
     print(f"load average after {os.getloadavg()[0]:.2f}")
+    if args.rllib:
+        print(f"rllib/dummy fps ratio: {rows[2]['fps'] / rows[0]['fps']:.2f}")
     ratio = rows[1]["fps"] / rows[0]["fps"]
     print(f"native/dummy fps ratio: {ratio:.2f}")
     return ratio

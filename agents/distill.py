@@ -45,7 +45,7 @@ from typing import Any
 
 import numpy as np
 
-from agents.common.cli import UserError, check_range, check_run_location, run_cli
+from agents.common.cli import UserError, check_run_location, run_cli
 from agents.common.env_factory import make_env, task_targets, wrapper_list
 from agents.common.metrics import (
     error_score,
@@ -56,8 +56,9 @@ from agents.common.metrics import (
 )
 from agents.runs.loading import ModelPolicy
 from agents.runs.model_files import sha256
-from agents.runs.records import DistillOutcome, EvalSettings
+from agents.runs.records import DaggerSchedule, DistillOutcome, EvalSettings
 from agents.runs.writing import write_args, write_run_config
+from agents.sb3.interrupts import DeferredSignals, Interrupted
 from agents.sb3.native_vec_env import make_sb3_vec_env
 from agents.sb3.policies import mean_action as student_mean
 from agents.sb3.training import (
@@ -65,11 +66,11 @@ from agents.sb3.training import (
     build,
     make_parser,
     next_run_dir,
+    probe_signature,
     resolve_config,
     start_from,
 )
 from softhand_env.envs.observation import ObservationLayout
-from softhand_env.envs.signature import env_signature
 
 #: Dict-observation key of the blind part (what the student reads).
 BLIND_KEY = "observation"
@@ -78,66 +79,23 @@ NOT_APPLICABLE = ("--n-timesteps", "--vec-env", "--eval-freq", "--save-freq")
 
 
 @dataclass
-class DaggerSchedule:
-    """The DAgger schedule (module doc): ``iterations``; ``rollout_steps`` control steps per env
-    and iteration; teacher-action probability ``beta_decay ** k`` at iteration k; ``epochs``
-    passes over the data set per iteration in minibatches of ``batch_size``; Adam step size
-    linear from ``lr`` to ``lr_final``; at most ``max_samples`` (blind observation, label)
-    pairs, oldest dropped first; ``latency_labels``: label with the teacher's action when the
-    command takes effect (:class:`DelayedLabels`)."""
-
-    iterations: int = 40
-    rollout_steps: int = 50
-    beta_decay: float = 0.5
-    epochs: int = 2
-    batch_size: int = 1024
-    lr: float = 1e-3
-    lr_final: float = 1e-3
-    max_samples: int = 2_000_000
-    latency_labels: bool = False
-
-    def __post_init__(self) -> None:
-        """Range checks (UserError on a bad value)."""
-        check_range("--iterations", self.iterations, 1, 10_000)
-        check_range("--rollout-steps", self.rollout_steps, 1, 100_000)
-        check_range("--beta-decay", self.beta_decay, 0.0, 1.0)
-        check_range("--epochs", self.epochs, 1, 1000)
-        check_range("--batch-size", self.batch_size, 1, 1_000_000)
-        check_range("--max-samples", self.max_samples, 1, 100_000_000)
-        for flag, value in (("--lr", self.lr), ("--lr-final", self.lr_final)):
-            if not 0.0 < value <= 1.0:
-                raise UserError(f"{flag} must be in (0, 1] (got {value!r})")
-
-
-@dataclass
 class DistillSettings(TrainSettings):
     """The distillation command line: the training settings (the student's run), the teacher's
-    run directory or zip and the DAgger schedule (``--lr-final`` defaults to ``--lr``)."""
+    run directory or zip and the DAgger schedule (its fields are the command line's
+    ``--iterations`` ... ``--latency-labels``; ``--lr-final`` defaults to ``--lr``)."""
 
     teacher: str = ""
-    iterations: int = 40
-    rollout_steps: int = 50
-    beta_decay: float = 0.5
-    epochs: int = 2
-    batch_size: int = 1024
-    lr: float = 1e-3
-    lr_final: float | None = None
-    max_samples: int = 2_000_000
-    latency_labels: bool = False
+    dagger: DaggerSchedule = dataclasses.field(default_factory=DaggerSchedule)
 
-    def __post_init__(self) -> None:
-        """Range checks of both parts (UserError on a bad value)."""
-        super().__post_init__()
-        if self.lr_final is None:
-            self.lr_final = self.lr
-        self.schedule()  # checks the schedule's ranges
-
-    def schedule(self) -> DaggerSchedule:
-        """The DAgger schedule of the settings."""
-        assert self.lr_final is not None  # set in __post_init__
-        return DaggerSchedule(self.iterations, self.rollout_steps, self.beta_decay,
-                              self.epochs, self.batch_size, self.lr, self.lr_final,
-                              self.max_samples, self.latency_labels)
+    @classmethod
+    def from_namespace(cls, ns: argparse.Namespace) -> DistillSettings:
+        """The settings of a parsed :func:`make_distill_parser` command line."""
+        train_fields = {f.name for f in dataclasses.fields(TrainSettings)}
+        schedule = {f.name: getattr(ns, f.name) for f in dataclasses.fields(DaggerSchedule)}
+        if schedule["lr_final"] is None:
+            schedule["lr_final"] = schedule["lr"]
+        return cls(**{name: getattr(ns, name) for name in train_fields}, teacher=ns.teacher,
+                   dagger=DaggerSchedule(**schedule))
 
 
 def make_distill_parser() -> argparse.ArgumentParser:
@@ -257,15 +215,19 @@ def teacher_view(obs: dict[str, np.ndarray], teacher: ObservationLayout,
     return {**obs, BLIND_KEY: np.concatenate([kept, rest], axis=-1)}
 
 
-def validate(model: Any, venv: Any, targets: Sequence[str], eval_seed: int
-             ) -> dict[str, float]:
+def validate(model: Any, venv: Any, targets: Sequence[str], eval_seed: int,
+             stop: DeferredSignals | None = None) -> dict[str, float]:
     """Success and final errors of the deterministic student on goals ``eval_seed + k`` (env k
-    of the native SB3 vector env ``venv``, re-seeded here; the first episode of each)."""
+    of the native SB3 vector env ``venv``, re-seeded here; the first episode of each).
+    ``stop``: checked before every step (:class:`~agents.sb3.interrupts.Interrupted` once a
+    signal was received)."""
     n_eval = venv.num_envs
     venv.seed(eval_seed)
     obs = venv.reset()
     finished: dict[int, dict[str, Any]] = {}
     while len(finished) < n_eval:
+        if stop is not None:
+            stop.check()
         action, _ = model.predict(obs, deterministic=True)
         obs, _, dones, infos = venv.step(action)
         for i in np.flatnonzero(dones):
@@ -344,16 +306,34 @@ def lr_at(k: int, iterations: int, lr: float, lr_final: float) -> float:
     return lr + (lr_final - lr) * frac
 
 
+@dataclass
+class DaggerResult:
+    """The outcome of :func:`dagger`: the best iteration's validation summary (None: no
+    iteration was validated, the run was interrupted first), the per-iteration curve, the env
+    steps of all rollouts and the signal that interrupted the run (None: it ran to its end)."""
+
+    best: dict[str, Any] | None
+    curve: list[dict[str, float]]
+    env_steps: int
+    interrupted: str | None = None
+
+
 def dagger(model: Any, teacher: ModelPolicy, env_id: str, kwargs: dict[str, Any], wrapper: Any,
            n_envs: int, seed: int, schedule: DaggerSchedule, validation: EvalSettings,
-           teacher_kwargs: dict[str, Any], log: Any = print
-           ) -> tuple[dict[str, Any], list[dict[str, float]]]:
-    """Train ``model``'s actor by DAgger (module doc, ``schedule``); returns the best validation
-    summary (its weights are loaded back into ``model``) and the per-iteration curve.
+           teacher_kwargs: dict[str, Any], log: Any = print,
+           stop: DeferredSignals | None = None) -> DaggerResult:
+    """Train ``model``'s actor by DAgger (module doc, ``schedule``); the best iteration's
+    weights are loaded back into ``model``.
+
     ``validation``: the validation goals (``n_eval_episodes`` from ``eval_seed``) and the
     success rate that stops early (``stop_success``; ``eval_freq`` is not used: every
     iteration is validated). ``teacher_kwargs``: the teacher's :data:`VIEW_KEYS` keywords (its
-    observation is contained in the student's, ``kwargs``; :func:`check_pair`)."""
+    observation is contained in the student's, ``kwargs``; :func:`check_pair`). ``stop``
+    (its handlers installed by the caller, :mod:`agents.sb3.interrupts`) is looked at before
+    every env step of the rollouts and the validation and before every minibatch: once it has
+    received a signal, the current iteration is abandoned and the best validated iteration
+    kept (none validated: ``model`` keeps its current weights, ``best`` is None).
+    """
     import torch
 
     rng = np.random.default_rng(seed)
@@ -373,6 +353,7 @@ def dagger(model: Any, teacher: ModelPolicy, env_id: str, kwargs: dict[str, Any]
     eval_venv = make_sb3_vec_env(env_id, validation.n_eval_episodes, validation.eval_seed,
                                  {**kwargs, **success_kwargs(env_id)}, "native",
                                  env_wrapper=wrapper)
+    signals = stop if stop is not None else DeferredSignals("distillation")  # never installed
     best: dict[str, Any] | None = None
     best_state: dict[str, Any] | None = None
     curve: list[dict[str, float]] = []
@@ -380,64 +361,93 @@ def dagger(model: Any, teacher: ModelPolicy, env_id: str, kwargs: dict[str, Any]
     delayed = schedule.latency_labels
     labels, no_latency = DelayedLabels(n_envs), np.zeros(n_envs, dtype=np.int64)
     steps = 0
+    interrupted: str | None = None
     t0 = time.time()
-    for k in range(schedule.iterations):
-        beta = schedule.beta_decay ** k
-        for group in opt.param_groups:
-            group["lr"] = lr_at(k, schedule.iterations, schedule.lr, schedule.lr_final)
-        for _ in range(schedule.rollout_steps):
-            t_obs = teacher_view(obs, t_layout, s_layout, t_size)
-            t_act, _ = teacher.model.predict(teacher.normalize(t_obs), deterministic=True)
-            blind = obs[BLIND_KEY].astype(np.float32)
-            s_act, _ = model.predict(blind, deterministic=True)
-            use_teacher = rng.random(n_envs) < beta
-            obs, _, dones, infos = venv.step(np.where(use_teacher[:, None], t_act, s_act))
-            latency = step_latencies(infos) if delayed else no_latency
-            x, y = labels.step(blind, np.asarray(t_act, dtype=np.float32), latency)
-            xs.append(x)
-            ys.append(y)
-            labels.end_step(dones)
-            steps += n_envs
-        total = sum(len(x) for x in xs)
-        while total - len(xs[0]) >= schedule.max_samples:
-            total -= len(xs.pop(0))
-            ys.pop(0)
-        x_all = torch.as_tensor(np.concatenate(xs))
-        y_all = torch.clamp(torch.as_tensor(np.concatenate(ys)), low, high)
-        n = len(x_all)
-        loss = torch.zeros(())
-        for _ in range(schedule.epochs):
-            perm = torch.randperm(n)
-            for start in range(0, n, schedule.batch_size):
-                idx = perm[start:start + schedule.batch_size]
-                loss = ((student_mean(policy, x_all[idx]) - y_all[idx]) ** 2).mean()
-                opt.zero_grad()
-                loss.backward()
-                opt.step()
-        summary = validate(model, eval_venv, targets, validation.eval_seed)
-        point = {"iteration": k, "env_steps": steps, "wall_s": round(time.time() - t0, 1),
-                 "beta": beta, "loss": float(loss.detach()), "samples": n, **summary}
-        curve.append(point)
-        log(f"iteration {k}: beta {beta:.3f}, loss {point['loss']:.5f}, {n} samples, "
-            f"validation success {summary_success_text(summary)} ({point['wall_s']} s)")
-        rank = (summary["success_rate"], -error_score(summary, targets))
-        if best is None or rank > best["rank"]:
-            best = {"rank": rank, "iteration": k, "env_steps": steps, **summary}
-            best_state = {key: v.clone() for key, v in policy.state_dict().items()}
-        stop = validation.stop_success
-        if stop is not None and summary["success_rate"] >= stop:
-            log(f"validation success >= {stop:.0%}: distillation stops")
-            break
+    try:
+        for k in range(schedule.iterations):
+            beta = schedule.beta_decay ** k
+            for group in opt.param_groups:
+                group["lr"] = lr_at(k, schedule.iterations, schedule.lr, schedule.lr_final)
+            for _ in range(schedule.rollout_steps):
+                signals.check()
+                t_obs = teacher_view(obs, t_layout, s_layout, t_size)
+                t_act, _ = teacher.model.predict(teacher.normalize(t_obs), deterministic=True)
+                blind = obs[BLIND_KEY].astype(np.float32)
+                s_act, _ = model.predict(blind, deterministic=True)
+                use_teacher = rng.random(n_envs) < beta
+                obs, _, dones, infos = venv.step(np.where(use_teacher[:, None], t_act, s_act))
+                latency = step_latencies(infos) if delayed else no_latency
+                x, y = labels.step(blind, np.asarray(t_act, dtype=np.float32), latency)
+                xs.append(x)
+                ys.append(y)
+                labels.end_step(dones)
+                steps += n_envs
+            total = sum(len(x) for x in xs)
+            while total - len(xs[0]) >= schedule.max_samples:
+                total -= len(xs.pop(0))
+                ys.pop(0)
+            x_all = torch.as_tensor(np.concatenate(xs))
+            y_all = torch.clamp(torch.as_tensor(np.concatenate(ys)), low, high)
+            n = len(x_all)
+            loss = torch.zeros(())
+            for _ in range(schedule.epochs):
+                perm = torch.randperm(n)
+                for start in range(0, n, schedule.batch_size):
+                    signals.check()
+                    idx = perm[start:start + schedule.batch_size]
+                    loss = ((student_mean(policy, x_all[idx]) - y_all[idx]) ** 2).mean()
+                    opt.zero_grad()
+                    loss.backward()
+                    opt.step()
+            summary = validate(model, eval_venv, targets, validation.eval_seed, signals)
+            point = {"iteration": k, "env_steps": steps, "wall_s": round(time.time() - t0, 1),
+                     "beta": beta, "loss": float(loss.detach()), "samples": n, **summary}
+            curve.append(point)
+            log(f"iteration {k}: beta {beta:.3f}, loss {point['loss']:.5f}, {n} samples, "
+                f"validation success {summary_success_text(summary)} ({point['wall_s']} s)")
+            rank = (summary["success_rate"], -error_score(summary, targets))
+            if best is None or rank > best["rank"]:
+                best = {"rank": rank, "iteration": k, "env_steps": steps, **summary}
+                best_state = {key: v.clone() for key, v in policy.state_dict().items()}
+            if validation.stop_success is not None and (
+                    summary["success_rate"] >= validation.stop_success):
+                log(f"validation success >= {validation.stop_success:.0%}: distillation stops")
+                break
+    except Interrupted as exc:
+        interrupted = str(exc)
+        log(f"{interrupted}: stopped in iteration {len(curve)} after {steps} env steps; "
+            "saving the run")
     venv.close()
     eval_venv.close()
-    assert best is not None and best_state is not None
-    policy.load_state_dict(best_state)
-    best.pop("rank")
-    return best, curve
+    if best_state is not None:
+        policy.load_state_dict(best_state)
+    if best is not None:
+        best.pop("rank")
+    return DaggerResult(best, curve, steps, interrupted)
+
+
+#: Keys of ``dagger_curve.npz`` besides the validation summary's.
+CURVE_KEYS = ("iteration", "env_steps", "wall_s", "beta", "loss", "samples")
+
+
+def save_curve(curve: Sequence[dict[str, float]], path: Path) -> None:
+    """``dagger_curve.npz``: one array (K,) per key of the K iterations' points (an
+    interrupted run without a validated iteration: the :data:`CURVE_KEYS` and
+    ``success_rate``, empty)."""
+    keys = list(curve[0]) if curve else [*CURVE_KEYS, "success_rate"]
+    arrays: dict[str, Any] = {key: np.array([p[key] for p in curve]) for key in keys}
+    np.savez(path, **arrays)
 
 
 def main(argv: Sequence[str] | None = None) -> Path:
-    """CLI entry point; returns the run directory of the student."""
+    """CLI entry point; returns the run directory of the student.
+
+    Every input is checked (output location, teacher and student, envs, policy built) before
+    the run directory is created. From its creation on, SIGINT and SIGTERM stop the
+    distillation at the next env step or minibatch (:mod:`agents.sb3.interrupts`): the best
+    validated iteration (none yet: the current weights) is saved as the run's model and
+    ``config.yml`` is finalised with ``interrupted: true``.
+    """
     args = parse_args(argv)
     if args.algo != "ppo":
         raise UserError("the student is saved as a PPO policy: use --algo ppo")
@@ -450,9 +460,7 @@ def main(argv: Sequence[str] | None = None) -> Path:
     teacher = ModelPolicy(args.teacher)
     kwargs, teacher_kwargs = check_pair(teacher, args.env, hp)
     wrapper = config.env_wrapper
-    probe = make_env(args.env, kwargs, wrapper)
-    rec.env_signature = env_signature(probe)
-    probe.close()
+    rec.env_signature = probe_signature(args.env, kwargs, wrapper, args.seed)
     plain = {k: v for k, v in kwargs.items() if k not in VIEW_KEYS}
     teacher_env = make_env(args.env, {**plain, **teacher_kwargs, "privileged_obs": True},
                            teacher.env_wrapper)  # the spaces of the teacher's view
@@ -466,33 +474,44 @@ def main(argv: Sequence[str] | None = None) -> Path:
     run_dir = next_run_dir(Path(args.log_folder), "ppo", args.env, args.run_name)
     if run_dir.exists():
         raise UserError(f"run directory {run_dir} exists (choose another --run-name)")
-    (run_dir / args.env).mkdir(parents=True)
-    write_args(run_dir, args.env, {
-        "algo": "ppo", "seed": args.seed, "conf_file": rec.conf_file, "n_timesteps": 0,
-        "device": args.device, "num_threads": args.torch_threads, "vec_env": "native",
-        "eval_freq": 0, "eval_episodes": args.eval_episodes, "save_freq": 0,
-        "log_folder": str(args.log_folder)})
-    print(f"run directory: {run_dir}")
-    t0 = time.time()
-    schedule = args.schedule()
-    best, curve = dagger(model, teacher, args.env, kwargs, wrapper, config.n_envs, args.seed,
-                         schedule, rec.eval, teacher_kwargs)
-    wall = round(time.time() - t0, 1)
-    model.save(run_dir / f"{args.env}.zip")  # the best iteration's weights (dagger())
-    arrays: dict[str, Any] = {key: np.array([p[key] for p in curve]) for key in curve[0]}
-    np.savez(run_dir / "dagger_curve.npz", **arrays)
-    rec.outcome = DistillOutcome(
-        teacher={"path": str(teacher.path), "sha256": sha256(teacher.path),
-                 "wall_time_s": teacher.run.record.get("wall_time_s"),
-                 "total_timesteps": teacher.run.record.get("total_timesteps")},
-        dagger=dataclasses.asdict(schedule),
-        wall_time_s=wall, total_timesteps=int(curve[-1]["env_steps"]),
-        best_validation={key: (float(v) if key != "iteration" else int(v))
-                         for key, v in best.items()},
-    )
-    write_run_config(run_dir, args.env, hp, rec)
-    print(f"saved {run_dir / (args.env + '.zip')}: validation success "
-          f"{summary_success_text(best)} (iteration {best['iteration']}, {wall} s)")
+    schedule = args.dagger
+    stop = DeferredSignals("distillation")
+    with stop.installed():
+        (run_dir / args.env).mkdir(parents=True)
+        write_args(run_dir, args.env, {
+            "algo": "ppo", "seed": args.seed, "conf_file": rec.conf_file, "n_timesteps": 0,
+            "device": args.device, "num_threads": args.torch_threads, "vec_env": "native",
+            "eval_freq": 0, "eval_episodes": args.eval_episodes, "save_freq": 0,
+            "log_folder": str(args.log_folder)})
+        write_run_config(run_dir, args.env, hp, rec)  # rewritten at the end (results, sha256)
+        print(f"run directory: {run_dir}", flush=True)
+        t0 = time.time()
+        result = dagger(model, teacher, args.env, kwargs, wrapper, config.n_envs, args.seed,
+                        schedule, rec.eval, teacher_kwargs,
+                        log=lambda line: print(line, flush=True), stop=stop)
+        wall = round(time.time() - t0, 1)
+        model.save(run_dir / f"{args.env}.zip")  # the best iteration's weights (dagger())
+        save_curve(result.curve, run_dir / "dagger_curve.npz")
+        best = result.best
+        rec.outcome = DistillOutcome(
+            teacher={"path": str(teacher.path), "sha256": sha256(teacher.path),
+                     "wall_time_s": teacher.run.record.get("wall_time_s"),
+                     "total_timesteps": teacher.run.record.get("total_timesteps")},
+            dagger=schedule,
+            wall_time_s=wall, total_timesteps=result.env_steps,
+            interrupted=result.interrupted is not None,
+            best_validation=None if best is None else {
+                key: (float(v) if key != "iteration" else int(v)) for key, v in best.items()},
+        )
+        write_run_config(run_dir, args.env, hp, rec)
+    what = (f"interrupted ({result.interrupted}), saved" if result.interrupted is not None
+            else "saved")
+    if best is None:
+        print(f"{what} {run_dir / (args.env + '.zip')}: no iteration validated, the current "
+              f"weights ({wall} s)")
+    else:
+        print(f"{what} {run_dir / (args.env + '.zip')}: validation success "
+              f"{summary_success_text(best)} (iteration {best['iteration']}, {wall} s)")
     return run_dir
 
 

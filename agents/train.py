@@ -28,32 +28,30 @@ the highest success rate, ties broken by the lower median final error.
 
 from __future__ import annotations
 
-import contextlib
-import signal
-import sys
 import time
-from collections.abc import Iterator, Sequence
+from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
-from stable_baselines3.common.callbacks import BaseCallback, CheckpointCallback, EvalCallback
+from stable_baselines3.common.callbacks import CheckpointCallback, EvalCallback
 
 from agents.common.cli import UserError, check_run_location, run_cli
-from agents.common.env_factory import make_env, task_targets
+from agents.common.env_factory import task_targets
 from agents.common.metrics import error_score, final_errors, summarize, summary_success_text
 from agents.runs.layout import BEST_MODEL
 from agents.runs.normalization import save_stats
 from agents.runs.records import RunConfig, TrainOutcome
 from agents.runs.writing import save_vecnormalize, write_args, write_run_config
+from agents.sb3.interrupts import DeferredSignals, StopOnSignal
 from agents.sb3.training import (
     TrainSettings,
     build,
     make_parser,
     next_run_dir,
+    probe_signature,
     resolve_config,
     start_from,
 )
-from softhand_env.envs.signature import env_signature
 
 
 def parse_args(argv: Sequence[str] | None = None) -> TrainSettings:
@@ -126,48 +124,14 @@ class Checkpoints(CheckpointCallback):
         return keep_going
 
 
-class StopOnSignal(BaseCallback):
-    """Stops ``learn()`` cleanly on SIGINT or SIGTERM.
-
-    While :meth:`installed` is active, the two signals only set :attr:`signal_name`; the
-    next ``_on_step`` (between env steps, never inside the physics kernel or a file write)
-    returns False, SB3 leaves ``learn()``, and the caller saves and finalises the run. The
-    previous handlers are restored on leaving the context."""
-
-    SIGNALS = (signal.SIGINT, signal.SIGTERM)
-
-    def __init__(self) -> None:
-        super().__init__()
-        #: Name of the signal received (``"SIGINT"``, ``"SIGTERM"``), None if none.
-        self.signal_name: str | None = None
-
-    def _handle(self, signum: int, frame: Any) -> None:
-        if self.signal_name is None:
-            print(f"{signal.Signals(signum).name}: training stops after this step; the run "
-                  "is saved", file=sys.stderr, flush=True)
-        self.signal_name = signal.Signals(signum).name
-
-    @contextlib.contextmanager
-    def installed(self) -> Iterator[StopOnSignal]:
-        """Install the flag-setting handlers (main thread only) for the ``with`` block."""
-        previous = {s: signal.signal(s, self._handle) for s in self.SIGNALS}
-        try:
-            yield self
-        finally:
-            for s, handler in previous.items():
-                signal.signal(s, handler)
-
-    def _on_step(self) -> bool:
-        return self.signal_name is None
-
-
 def train(config: RunConfig, run_dir: Path, model: Any, eval_env: Any,
-          progress_bar: bool = True, stop: StopOnSignal | None = None) -> Any:
+          progress_bar: bool = True, stop: DeferredSignals | None = None) -> Any:
     """Learn (validation and checkpoints as configured), save the run; returns the model.
 
-    ``stop`` (its handlers installed by the caller) ends ``learn()`` on SIGINT/SIGTERM; the
-    run is then saved as at the end (final zip, statistics, ``config.yml`` with checksums)
-    with ``interrupted: true`` in its outcome."""
+    ``stop`` (its handlers installed by the caller, :mod:`agents.sb3.interrupts`) ends
+    ``learn()`` after the env step at which SIGINT/SIGTERM arrived; the run is then saved as
+    at the end (final zip, statistics, ``config.yml`` with checksums) with
+    ``interrupted: true`` in its outcome."""
     from stable_baselines3.common.logger import configure
 
     hp, rec = config.hyperparams, config.record
@@ -183,7 +147,7 @@ def train(config: RunConfig, run_dir: Path, model: Any, eval_env: Any,
         eval_freq=max(ev.eval_freq // n_envs, 1) if ev.eval_freq > 0 else 0,
         log_path=str(run_dir), deterministic=True, verbose=1,
     )
-    callbacks: list[Any] = [] if stop is None else [stop]
+    callbacks: list[Any] = [] if stop is None else [StopOnSignal(stop)]
     callbacks.append(evaluation)
     if rec.save_freq > 0:
         callbacks.append(Checkpoints(save_freq=max(rec.save_freq // n_envs, 1),
@@ -226,7 +190,7 @@ def main(argv: Sequence[str] | None = None) -> Path:
     algorithm built) before the run directory is created: a rejected input leaves nothing
     behind. The log folder must be writable and outside the package's model folder. From the
     creation of the run directory on, SIGINT and SIGTERM stop training between steps and the
-    run is saved and finalised (:class:`StopOnSignal`).
+    run is saved and finalised (:mod:`agents.sb3.interrupts`).
     """
     args = parse_args(argv)
     check_run_location(args.log_folder)
@@ -235,15 +199,15 @@ def main(argv: Sequence[str] | None = None) -> Path:
         raise UserError(f"run directory {run_dir} exists (choose another --run-name)")
     config = resolve_config(args)
     hp, rec = config.hyperparams, config.record
-    probe = make_env(args.env, config.env_kwargs, config.env_wrapper)
-    rec.env_signature = env_signature(probe)  # checked when the model is loaded
-    probe.close()
+    # checked when the model is loaded; the grasp phase is tried here, before the run exists
+    rec.env_signature = probe_signature(args.env, config.env_kwargs, config.env_wrapper,
+                                        args.seed)
     model, eval_env = build(config, verbose=args.verbose)
     if args.trained_agent is not None:
         start_from(model, args.trained_agent, rec)
     if run_dir.exists():  # created meanwhile by another process
         raise UserError(f"run directory {run_dir} exists (choose another --run-name)")
-    stop = StopOnSignal()
+    stop = DeferredSignals("training")
     with stop.installed():
         (run_dir / args.env).mkdir(parents=True)
         write_args(run_dir, args.env, {

@@ -216,6 +216,9 @@ def make_vec_env(
 
     With ``seeds`` (a goal set), copy i plays ``seeds[i::n_envs]`` through :class:`GoalSeeds`;
     else the copies are seeded ``seed + i`` at the first reset and continue their streams.
+    The worker processes of ``"subproc"`` ignore SIGINT and SIGTERM (a Ctrl-C reaches the
+    terminal's whole process group): the main process decides how to stop
+    (:mod:`agents.sb3.interrupts`) and closes them; they also end when its pipe closes.
     """
     from stable_baselines3.common.monitor import Monitor
     from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv
@@ -226,6 +229,11 @@ def make_vec_env(
 
     def thunk(i: int) -> Callable[[], gym.Env]:
         def _init() -> gym.Env:
+            if vec_env == "subproc":  # in the worker process
+                import signal
+
+                for signum in (signal.SIGINT, signal.SIGTERM):
+                    signal.signal(signum, signal.SIG_IGN)
             env: gym.Env = Monitor(make_env(env_id, env_kwargs, env_wrapper))
             if seeds is not None:
                 env = GoalSeeds(env, list(seeds)[i::n_envs])

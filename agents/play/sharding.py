@@ -83,12 +83,13 @@ def ray_options(address: str | None, workers: int | None) -> RayOptions:
     return RayOptions(address, workers)
 
 
-def require_ray() -> Any:
-    """The ``ray`` module, or :class:`UserError` (with the install hint) if it is missing."""
+def require_ray(flag: str = "--ray", hint: str = INSTALL_HINT) -> Any:
+    """The ``ray`` module, or :class:`UserError` naming ``flag`` (with the install ``hint``)
+    if it is missing."""
     try:
         import ray
     except ImportError:
-        raise UserError(f"--ray needs Ray, which is not installed ({INSTALL_HINT})") from None
+        raise UserError(f"{flag} needs Ray, which is not installed ({hint})") from None
     return ray
 
 
@@ -110,11 +111,13 @@ def merge(results: Sequence[Sequence[_Result]]) -> list[_Result]:
     return [r for chunk in results for r in chunk]
 
 
-def cluster_cpus(address: str, workers: int | None = None) -> int:
+def cluster_cpus(address: str, workers: int | None = None, flag: str = "--ray") -> int:
     """Connect to (or start, :data:`LOCAL`) Ray unless it is initialised; returns the CPUs of
     the cluster (at least 1). A local instance gets ``workers`` CPUs if given, else all of
-    this machine's; no dashboard."""
-    ray = require_ray()
+    this machine's; no dashboard. The one place the commands call ``ray.init`` (also for
+    ``agents.rllib_train --address``); ``flag`` names the option in the error of an address
+    with no cluster."""
+    ray = require_ray(flag)
     if not ray.is_initialized():
         kwargs: dict[str, Any] = {"include_dashboard": False, "log_to_driver": True}
         if address == LOCAL:
@@ -122,7 +125,7 @@ def cluster_cpus(address: str, workers: int | None = None) -> int:
         try:
             ray.init(address=address, **kwargs)
         except ConnectionError as exc:
-            raise UserError(f"--ray {address}: no Ray cluster there ({exc})") from None
+            raise UserError(f"{flag} {address}: no Ray cluster there ({exc})") from None
     return max(1, math.floor(ray.cluster_resources().get("CPU", 1)))
 
 

@@ -1,10 +1,12 @@
 """Hyper-parameter files (RL Zoo's dialect, keyed by env id) and algorithm keywords.
 
 :func:`load_hyperparams` reads ``agents/configs/<algo>.yml`` (installed with the
-package; a mapping keyed by env id, YAML anchors allowed). The files are written in RL Zoo's
-dialect, so ``python -m rl_zoo3.train --gym-packages softhand_env --conf-file <file>`` reads
-them unchanged: ``policy_kwargs`` as a ``"dict(...)"`` string (read here without ``eval``,
-:mod:`agents.runs.zoo_dialect`), ``lin_<v>`` linear schedules.
+package) or the ``--conf-file`` given: a mapping keyed by env id, YAML anchors and merge keys
+allowed, read with the bounds of :func:`softhand_env.physics.safe_yaml.load_bounded` (at most
+1 MB, read before parsing; nesting and the alias-expanded size bounded). The files are
+written in RL Zoo's dialect, so ``python -m rl_zoo3.train --gym-packages softhand_env
+--conf-file <file>`` reads them unchanged: ``policy_kwargs`` as a ``"dict(...)"`` string
+(read here without ``eval``, :mod:`agents.runs.zoo_dialect`), ``lin_<v>`` linear schedules.
 :func:`algo_kwargs` turns an entry into algorithm keywords.
 """
 
@@ -18,6 +20,7 @@ import yaml
 
 from agents.common.cli import UserError
 from agents.runs.zoo_dialect import normalize_from, policy_kwargs_from
+from softhand_env.physics.safe_yaml import load_bounded, read_bounded
 
 #: Directory of the hyper-parameter files (``<algo>.yml``), installed with the package.
 CONFIG_DIR = Path(__file__).resolve().parent.parent / "configs"
@@ -67,16 +70,17 @@ def config_path(algo: str, conf_file: str | None) -> Path:
 
 
 def load_hyperparams(algo: str, env_id: str, conf_file: str | None = None) -> dict[str, Any]:
-    """The entry of ``env_id`` in the hyper-parameter file, validated (:class:`UserError`)."""
+    """The entry of ``env_id`` in the hyper-parameter file, validated (:class:`UserError`: one
+    bounded line, also for a file beyond the size, depth or alias-expansion bounds)."""
     if algo not in ALGOS:
         raise UserError(f"unknown algo {algo!r}; choose one of {', '.join(ALGOS)}")
     path = config_path(algo, conf_file)
     if not path.is_file():
         raise UserError(f"hyper-parameter file {path} not found")
-    try:
-        data = yaml.safe_load(path.read_text())
-    except yaml.YAMLError as exc:
-        raise UserError(f"{path}: invalid YAML: {exc}") from None
+    try:  # bounded: size before parsing, depth, integer length, aliases as expanded
+        data = load_bounded(read_bounded(path), yaml.SafeLoader, str(path), aliases=True)
+    except ValueError as exc:
+        raise UserError(str(exc)) from None
     if not isinstance(data, dict):
         raise UserError(f"{path}: expected a mapping keyed by env id")
     if env_id not in data:

@@ -16,6 +16,8 @@ import dataclasses
 from dataclasses import dataclass
 from typing import Any
 
+from agents.common.cli import UserError, check_range
+
 
 @dataclass
 class EvalSettings:
@@ -32,37 +34,94 @@ class EvalSettings:
 
 
 @dataclass
-class TrainOutcome:
-    """How an ``agents.train`` run ended: wall time (s) of ``learn``, env steps done, whether it
-    was interrupted (Ctrl-C), the env step at which the validation success stopped it (None:
-    it did not) and the best validation summary (None: no validation ran)."""
+class DaggerSchedule:
+    """The DAgger schedule of ``agents.distill`` (``record["dagger"]``): ``iterations``;
+    ``rollout_steps`` control steps per env and iteration; teacher-action probability
+    ``beta_decay ** k`` at iteration k; ``epochs`` passes over the data set per iteration in
+    minibatches of ``batch_size``; Adam step size linear from ``lr`` to ``lr_final``; at most
+    ``max_samples`` (blind observation, label) pairs, oldest dropped first;
+    ``latency_labels``: label with the teacher's action when the command takes effect
+    (:class:`agents.distill.DelayedLabels`). Range-checked on construction (UserError naming
+    the command-line flag)."""
+
+    iterations: int = 40
+    rollout_steps: int = 50
+    beta_decay: float = 0.5
+    epochs: int = 2
+    batch_size: int = 1024
+    lr: float = 1e-3
+    lr_final: float = 1e-3
+    max_samples: int = 2_000_000
+    latency_labels: bool = False
+
+    def __post_init__(self) -> None:
+        """Range checks (UserError on a bad value)."""
+        check_range("--iterations", self.iterations, 1, 10_000)
+        check_range("--rollout-steps", self.rollout_steps, 1, 100_000)
+        check_range("--beta-decay", self.beta_decay, 0.0, 1.0)
+        check_range("--epochs", self.epochs, 1, 1000)
+        check_range("--batch-size", self.batch_size, 1, 1_000_000)
+        check_range("--max-samples", self.max_samples, 1, 100_000_000)
+        for flag, value in (("--lr", self.lr), ("--lr-final", self.lr_final)):
+            if not 0.0 < value <= 1.0:
+                raise UserError(f"{flag} must be in (0, 1] (got {value!r})")
+
+
+@dataclass
+class RunOutcome:
+    """How a run ended (the fields both trainers record): wall time (s) of the training
+    loop, env steps done, whether SIGINT or SIGTERM interrupted it
+    (:mod:`agents.sb3.interrupts`); ``best_validation``: the best validation summary (None:
+    no validation completed)."""
 
     wall_time_s: float
     total_timesteps: int
     interrupted: bool
-    stopped_on_success_at: int | None
-    best_validation: dict[str, float] | None = None
 
     def to_yaml(self) -> dict[str, Any]:
         """The record keys of the outcome (``best_validation`` only when there is one)."""
         out = dataclasses.asdict(self)
-        if self.best_validation is None:
+        if out.get("best_validation", 0) is None:
             out.pop("best_validation")
         return out
 
 
 @dataclass
-class DistillOutcome:
-    """How an ``agents.distill`` run ended: the teacher's provenance (path, sha256, wall time,
-    steps), the DAgger schedule, wall time (s), env steps of the rollouts and the best
-    iteration's validation summary."""
+class TrainOutcome(RunOutcome):
+    """How an ``agents.train`` run ended (:class:`RunOutcome`), and the env step at which the
+    validation success stopped it (None: it did not)."""
+
+    stopped_on_success_at: int | None
+    best_validation: dict[str, float] | None = None
+
+
+@dataclass
+class DistillOutcome(RunOutcome):
+    """How an ``agents.distill`` run ended (:class:`RunOutcome`; ``best_validation``: the best
+    iteration's, None if the run was interrupted before its first validation), the teacher's
+    provenance (path, sha256, wall time, steps) and the DAgger schedule."""
 
     teacher: dict[str, Any]
-    dagger: dict[str, Any]
+    dagger: DaggerSchedule
+    best_validation: dict[str, float] | None = None
+    trainer: str = "dagger"
+
+
+@dataclass
+class RLlibOutcome:
+    """How an ``agents.rllib_train`` run ended: wall time (s) of the training iterations, env
+    steps sampled, iterations, env steps per second of the iterations, and the Ray and RLlib
+    settings (``ray``: address, env runners, envs per runner, CPUs of the cluster, Ray
+    version; ``rllib``: the PPO settings as RLlib got them)."""
+
     wall_time_s: float
     total_timesteps: int
-    best_validation: dict[str, float]
-    trainer: str = "dagger"
+    iterations: int
+    env_steps_per_s: float
+    ray: dict[str, Any]
+    rllib: dict[str, Any]
+    trainer: str = "rllib"
+    interrupted: bool = False
 
     def to_yaml(self) -> dict[str, Any]:
         """The record keys of the outcome."""
@@ -116,7 +175,7 @@ class RunRecord:
     started: str
     trained_agent: dict[str, Any] | None = None
     env_signature: dict[str, Any] | None = None
-    outcome: TrainOutcome | DistillOutcome | BCOutcome | None = None
+    outcome: TrainOutcome | DistillOutcome | BCOutcome | RLlibOutcome | None = None
 
     def to_yaml(self) -> dict[str, Any]:
         """The record as ``config.yml`` holds it (plain YAML values; ``env_signature`` only

@@ -6,6 +6,8 @@
   hyper-parameter entry merged with the overrides, and the record);
 * :func:`build`: the algorithm on its training envs and the validation env, every
   hyper-parameter checked before a run directory exists;
+* :func:`probe_signature`: the env signature of the run, its first reset (the grasp phase)
+  tried before a run directory exists;
 * :func:`start_from`: weights and statistics of a saved model as the starting point;
 * :func:`next_run_dir`: the run directory, numbered as ``rl_zoo3.train`` numbers its runs.
 """
@@ -25,7 +27,7 @@ from stable_baselines3.common.utils import set_random_seed
 from stable_baselines3.common.vec_env import VecNormalize
 
 from agents.common.cli import SEED_MAX, ArgumentParser, UserError, check_range, parse_kv
-from agents.common.env_factory import check_env_id, goal_seeds, make_vec_env
+from agents.common.env_factory import check_env_id, goal_seeds, make_env, make_vec_env
 from agents.common.metrics import success_kwargs
 from agents.runs.hyperparams import (
     ALGOS,
@@ -273,6 +275,22 @@ def build(config: RunConfig, verbose: int = 1) -> tuple[Any, Any]:
         msg = " ".join(str(exc).split()) or type(exc).__name__
         raise UserError(f"cannot build {algo.upper()} from the hyper-parameters: {msg}") from None
     return model, eval_env
+
+
+def probe_signature(env_id: str, env_kwargs: dict[str, Any], env_wrapper: Any, seed: int
+                    ) -> dict[str, Any]:
+    """The env signature (:func:`softhand_env.envs.signature.env_signature`) of one env of
+    the run, after one ``reset(seed=seed)``: a configuration whose grasp phase fails (e.g.
+    ``hand_overrides: {Kd: 1e6}``) raises its ``PhysicsError`` here, before the run directory
+    exists (one line and exit 2 in the CLIs), not at the first reset of training."""
+    from softhand_env.envs.signature import env_signature
+
+    probe = make_env(env_id, env_kwargs, env_wrapper)
+    try:
+        probe.reset(seed=seed)
+        return env_signature(probe)
+    finally:
+        probe.close()
 
 
 def start_from(model: Any, spec: str, record: RunRecord) -> None:

@@ -172,3 +172,93 @@ def test_cli_keyword_values_are_read_with_bounds():
             parse_kv([f"hand_overrides:{value}"])
         assert time.perf_counter() - t0 < 5.0
         assert "\n" not in str(err.value) and len(str(err.value)) < 400
+
+
+#: A 3 KB YAML "billion laughs": nine levels of nine aliases (9**9 nodes expanded).
+BOMB = "a0: &a0 [x, x, x, x, x, x, x, x, x]\n" + "".join(
+    f"a{i}: &a{i} [{', '.join([f'*a{i - 1}'] * 9)}]\n" for i in range(1, 10))
+
+
+@pytest.mark.parametrize("command", ["train", "distill"])
+@pytest.mark.parametrize("text, fragment", [
+    (BOMB + "SoftHandTranslate-v0: {policy: MlpPolicy, n_timesteps: 64, env_kwargs: "
+     "{hand_overrides: *a9}}\n", "more than 100000 nodes (aliases)"),
+    ("SoftHandTranslate-v0: " + "[" * 50_000 + "]" * 50_000 + "\n", "nested deeper than 32"),
+    (".d: &d " + "[" * 20 + "]" * 20 + "\nSoftHandTranslate-v0: {policy: MlpPolicy, "
+     "n_timesteps: 64, env_kwargs: {hand_overrides: " + "[" * 12 + "*d" + "]" * 12 + "}}\n",
+     "nested deeper than 32"),  # deep only once the alias is expanded
+    ("# padding\n" * 200_000, "larger than 1000000 bytes"),
+    ("SoftHandTranslate-v0: {policy: MlpPolicy, n_timesteps: " + "9" * 5000 + "}\n",
+     "integer longer than"),
+])
+def test_conf_file_is_read_with_the_bounds_of_model_configs(tmp_path, capsys, command, text,
+                                                             fragment):
+    """--conf-file (train and distill): size refused before parsing, depth (also through an
+    alias), alias expansion and integer length bounded; one line, exit 2, fast, nothing
+    written."""
+    import time
+
+    from agents import distill
+
+    conf = tmp_path / "conf.yml"
+    conf.write_text(text)
+    argv = ["--env", "SoftHandTranslate-v0", "--conf-file", str(conf), "--log-folder",
+            str(tmp_path / "logs")]
+    if command == "distill":
+        argv += ["--teacher", "SoftHandTranslate-v0"]
+    t0 = time.perf_counter()
+    _exit_2(capsys, distill.main if command == "distill" else train.main, argv, fragment)
+    assert time.perf_counter() - t0 < 5.0
+    assert not (tmp_path / "logs").exists()
+
+
+def test_conf_file_anchors_and_merge_keys_within_the_bounds_are_read(tmp_path):
+    """The zoo's anchors and merge keys (as in the shipped files) are read as before; the
+    alias-expanded size counts each alias as its anchored node."""
+    from agents.runs.hyperparams import load_hyperparams
+    from softhand_env.physics.safe_yaml import MAX_EXPANDED_NODES, load_bounded
+
+    conf = tmp_path / "conf.yml"
+    conf.write_text(".base: &base {policy: MlpPolicy, n_timesteps: 64, env_kwargs: "
+                    "{max_delta_deg: 0.5}}\nSoftHandTranslate-v0:\n  <<: *base\n  n_envs: 2\n")
+    hp = load_hyperparams("ppo", "SoftHandTranslate-v0", str(conf))
+    assert (hp["policy"], hp["n_envs"], hp["env_kwargs"]) == ("MlpPolicy", 2,
+                                                             {"max_delta_deg": 0.5})
+    side = int(MAX_EXPANDED_NODES ** 0.5) - 2  # a list of `side` aliases of `side` scalars
+    just = f"a: &a [{', '.join(['0'] * side)}]\nb: [{', '.join(['*a'] * side)}]\n"
+    assert len(load_bounded(just, aliases=True)["b"]) == side
+    with pytest.raises(ValueError, match="aliases"):
+        load_bounded(just.replace("b: [", "b: [*a, *a, *a, "), aliases=True)
+    with pytest.raises(ValueError, match="aliases are not allowed"):
+        load_bounded(just)  # model configs: no aliases at all
+
+
+def test_node_count_bounds_only_documents_with_aliases(monkeypatch):
+    """Without aliases the byte size bounds a document; the expanded-node bound is for the
+    files that may use aliases."""
+    from softhand_env.physics import safe_yaml
+
+    monkeypatch.setattr(safe_yaml, "MAX_EXPANDED_NODES", 10)
+    text = "[" + ", ".join(["1"] * 20) + "]"
+    assert safe_yaml.load_bounded(text) == [1] * 20
+    with pytest.raises(ValueError, match="more than 10 nodes"):
+        safe_yaml.load_bounded(text, aliases=True)
+
+
+@pytest.mark.filterwarnings("ignore:RK4 step dt:RuntimeWarning")  # the hand's stability warning
+@pytest.mark.parametrize("command", ["train", "evaluate"])
+def test_a_hand_whose_grasp_phase_fails_is_one_line_before_any_output(tmp_path, capsys,
+                                                                      command):
+    """``hand_overrides: {Kd: 1e6}`` given on purpose (train's --env-kwargs, evaluate's
+    --task-kwargs): the grasp phase fails; PhysicsError as one line, exit 2, and no run
+    directory or results (train tries the first reset before creating the run)."""
+    over = "hand_overrides:{Kd: 1.0e+6}"
+    if command == "train":
+        _exit_2(capsys, train.main, TRAIN + ["--env-kwargs", over, "--log-folder",
+                                             str(tmp_path / "logs")], "PhysicsError")
+        assert not (tmp_path / "logs").exists()
+    else:
+        _exit_2(capsys, evaluate.main, ["--model", "SoftHandTranslate-v0", "--n-episodes", "1",
+                                        "--task-kwargs", over, "--out", str(tmp_path / "o")],
+                "PhysicsError")
+        assert not (tmp_path / "o").exists()

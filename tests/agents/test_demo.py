@@ -39,3 +39,27 @@ def test_demo_exits_2_naming_a_missing_learned_model(tmp_path, monkeypatch, caps
     err = capsys.readouterr().err
     assert "no shipped model for SoftHandReorient-v0" in err
     assert "agents/models/<algo>/SoftHandReorient-v0_1/SoftHandReorient-v0.zip" in err
+
+
+def test_demo_rerun_needs_force_and_passes_it_to_every_step(tmp_path, monkeypatch, capsys):
+    """A rerun into an --out that holds files (a user's edited trajectory.csv) is refused
+    before anything runs; with --force every step it runs is told to overwrite."""
+    import pytest
+
+    from agents.common import cli
+
+    out = tmp_path / "demo"
+    (out / "chapter5").mkdir(parents=True)
+    edited = out / "chapter5" / "trajectory.csv"
+    edited.write_text("edited by the user\n")
+    calls: list[list[str]] = []
+    monkeypatch.setattr("agents.evaluate.main",
+                        lambda argv: calls.append(argv) or {"success_rate": 1.0})
+    monkeypatch.setattr("softhand_env.figures.main", lambda argv: calls.append(argv))
+    with pytest.raises(SystemExit) as exc:
+        cli.run_cli(demo.main, ["--out", str(out), "--n-episodes", "1"])
+    assert exc.value.code == 2 and "pass --force" in capsys.readouterr().err
+    assert calls == [] and edited.read_text() == "edited by the user\n"
+    demo.main(["--out", str(out), "--n-episodes", "1", "--force"])
+    assert len(calls) == 3 + 2 * len(demo.GOAL_ENVS)
+    assert all("--force" in argv for argv in calls)

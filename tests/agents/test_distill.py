@@ -176,7 +176,7 @@ def test_step_size_goes_linearly_from_lr_to_lr_final():
     np.testing.assert_allclose(steps, [1e-3, 7.75e-4, 5.5e-4, 3.25e-4, 1e-4])
     assert distill.lr_at(0, 1, 1e-3, 1e-4) == 1e-3  # a single iteration uses --lr
     args = distill.parse_args(["--env", ENV_ID, "--teacher", "t"])
-    assert args.lr_final == args.lr  # constant by default
+    assert args.dagger.lr_final == args.dagger.lr  # constant by default
 
 
 def test_delayed_labels_pair_a_state_with_the_teacher_action_when_its_command_acts():

@@ -23,16 +23,19 @@ ENV = "SoftHandTranslate-v0"
 
 
 def _train_and_signal(log: Path, name: str, signum: int, delay_s: float,
-                      vec_env: str) -> Path:
-    """Start a long training, send ``signum`` ``delay_s`` after the run directory exists;
-    returns the run directory once the process has ended (exit code 0 asserted)."""
+                      vec_env: str, group: bool = False) -> Path:
+    """Start a long training, send ``signum`` ``delay_s`` after the run directory exists (to
+    its whole process group if ``group``, as Ctrl-C in a terminal does: the subproc workers
+    get it too); returns the run directory once the process has ended (exit code 0
+    asserted)."""
     cmd = [sys.executable, "-W", "ignore", "-m", "agents.train", "--env", ENV,
            "--n-timesteps", "10000000", "--hyperparams", "n_steps:64", "batch_size:64",
            "n_envs:2", "--eval-freq", "128", "--eval-episodes", "1", "--save-freq", "128",
            "--no-progress-bar", "--verbose", "0", "--vec-env", vec_env,
            "--log-folder", str(log), "--run-name", name]
     proc = subprocess.Popen(cmd, cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
-                            text=True, env={**os.environ, "PYTHONPATH": str(ROOT)})
+                            text=True, env={**os.environ, "PYTHONPATH": str(ROOT)},
+                            start_new_session=group)
     assert proc.stdout is not None
     try:
         for line in proc.stdout:
@@ -41,7 +44,10 @@ def _train_and_signal(log: Path, name: str, signum: int, delay_s: float,
         else:
             pytest.fail(f"no run directory: {proc.stderr.read() if proc.stderr else ''}")
         time.sleep(delay_s)
-        proc.send_signal(signum)
+        if group:
+            os.killpg(proc.pid, signum)
+        else:
+            proc.send_signal(signum)
         out, err = proc.communicate(timeout=600)
     finally:
         if proc.poll() is None:
@@ -52,15 +58,18 @@ def _train_and_signal(log: Path, name: str, signum: int, delay_s: float,
 
 
 @pytest.mark.parametrize(
-    "signum,delay_s,vec_env",
-    [(signal.SIGINT, 0.0, "dummy"),     # at once: while the first rollout starts
-     pytest.param(signal.SIGTERM, 2.0, "dummy", marks=pytest.mark.slow),
+    "signum,delay_s,vec_env,group",
+    [(signal.SIGINT, 0.0, "dummy", False),     # at once: while the first rollout starts
+     pytest.param(signal.SIGTERM, 2.0, "dummy", False, marks=pytest.mark.slow),
      # inside the batched kernel of the native vector env
-     pytest.param(signal.SIGINT, 4.0, "native", marks=pytest.mark.slow)],
-    ids=["sigint-at-once", "sigterm-2s", "sigint-4s-native"],
+     pytest.param(signal.SIGINT, 4.0, "native", False, marks=pytest.mark.slow),
+     # Ctrl-C in a terminal: the subproc workers get it too, and ignore it
+     pytest.param(signal.SIGINT, 3.0, "subproc", True, marks=pytest.mark.slow)],
+    ids=["sigint-at-once", "sigterm-2s", "sigint-4s-native", "sigint-group-3s-subproc"],
 )
-def test_interrupted_training_is_evaluable(tmp_path, signum, delay_s, vec_env):
-    run = _train_and_signal(tmp_path / "logs", f"r{signum}_{vec_env}", signum, delay_s, vec_env)
+def test_interrupted_training_is_evaluable(tmp_path, signum, delay_s, vec_env, group):
+    run = _train_and_signal(tmp_path / "logs", f"r{signum}_{vec_env}", signum, delay_s, vec_env,
+                            group)
     record = resolve_model(run).record  # config.yml's record, checksums verified on load
     assert record["interrupted"] is True
     assert 0 < record["total_timesteps"] < 10_000_000

@@ -42,6 +42,14 @@ def test_torch_actions_convert_or_are_a_type_error():
     with pytest.raises(TypeError, match="detach"):
         env.step(torch.zeros(2, requires_grad=True))
     env.close()
+    vec = _vector(num_envs=2)  # the native vector env: the same rule
+    vec.reset(seed=0)
+    obs_np = vec.step(np.zeros((2, 2), dtype=np.float32))[0]
+    vec.reset(seed=0)
+    np.testing.assert_array_equal(vec.step(torch.zeros(2, 2))[0], obs_np)
+    with pytest.raises(TypeError, match="detach"):
+        vec.step(torch.zeros(2, 2, requires_grad=True))
+    vec.close()
 
 
 @pytest.mark.parametrize("seed", [3, np.int64(3), np.uint32(3), 2**40])

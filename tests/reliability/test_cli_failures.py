@@ -42,6 +42,12 @@ def _cases(tmp: Path) -> list[tuple[str, list[str], str]]:
     deep = tmp / "deep.json"
     deep.write_text("[" * 50_000 + "]" * 50_000)
     curve = tmp / "curve.png"
+    bomb = tmp / "bomb.yml"  # 3 KB, 9**9 nodes once expanded
+    bomb.write_text("a0: &a0 [x, x, x, x, x, x, x, x, x]\n" + "".join(
+        f"a{i}: &a{i} [{', '.join([f'*a{i - 1}'] * 9)}]\n" for i in range(1, 10))
+        + "SoftHandTranslate-v0: {policy: MlpPolicy, n_timesteps: 1, env_wrapper: *a9}\n")
+    big = tmp / "big.yml"
+    big.write_text("# padding\n" * 200_000)
     translate = ["--env", "SoftHandTranslate-v0"]
     train = [*translate, "--no-progress-bar", "--log-folder", str(tmp / "logs")]
     evaluate = ["--policy", "model-based", *translate, "--n-episodes", "1"]
@@ -57,6 +63,10 @@ def _cases(tmp: Path) -> list[tuple[str, list[str], str]]:
         ("agents.train", [*train, "--env-kwargs", 'grasp_setpoint_deg:"66"'],
          "grasp_setpoint_deg must be a pair"),
         ("agents.train", [*train, "--env-kwargs", "max_delta_deg:[1, 2]"], "max_delta_deg"),
+        ("agents.train", [*train, "--conf-file", str(bomb)], "nodes (aliases)"),
+        ("agents.train", [*train, "--conf-file", str(deep)], "nested deeper"),
+        ("agents.distill", [*translate, "--teacher", "SoftHandTranslate-v0", "--conf-file",
+                            str(big), "--log-folder", str(tmp / "logs")], "larger than"),
         ("agents.evaluate", ["--policy", "paper", "--n-episodes", "1000000"], "--n-episodes"),
         ("agents.evaluate", ["--policy", "paper", "--seed", "-1"], "--seed"),
         ("agents.evaluate", [*evaluate, "--out", UNWRITABLE], "not writable"),
@@ -80,6 +90,8 @@ def _cases(tmp: Path) -> list[tuple[str, list[str], str]]:
         ("agents.learning_curves", [str(tmp), "--out", UNWRITABLE + ".png"], "not writable"),
         ("agents.learning_curves", [str(tmp), "--out", str(curve)], "not a run directory"),
         ("agents.bench_train", ["--steps", "0"], "--steps"),
+        ("agents.rllib_train", ["--env", "SoftHandReorient-v0", "--num-env-runners", "-1",
+                                "--stop-timesteps", "10"], "--num-env-runners"),
         ("softhand_env.figures", ["contact", "--out", UNWRITABLE], "not writable"),
         ("softhand_env.figures", ["contact", "--out", str(figures)], "pass --force"),
         ("softhand_env.figures", ["dynamics", "--config", str(tmp / "none.yml"),
