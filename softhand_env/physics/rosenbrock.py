@@ -390,8 +390,16 @@ def _setup_lanes(Pl, g, W, nl):
         W[_W_KAPN * L + l] = Pl[P_BETA * L + l]
         f = _gram_ldl(_load_phi(W, l), W[_W_MX * L + l], W[_W_MO * L + l], m1, dt1, m2,
                       dt2, md, dn, dtt)
-        for r in range(10):
-            W[(_W_LDL + r) * L + l] = f[r]
+        W[(_W_LDL + 0) * L + l] = f[0]
+        W[(_W_LDL + 1) * L + l] = f[1]
+        W[(_W_LDL + 2) * L + l] = f[2]
+        W[(_W_LDL + 3) * L + l] = f[3]
+        W[(_W_LDL + 4) * L + l] = f[4]
+        W[(_W_LDL + 5) * L + l] = f[5]
+        W[(_W_LDL + 6) * L + l] = f[6]
+        W[(_W_LDL + 7) * L + l] = f[7]
+        W[(_W_LDL + 8) * L + l] = f[8]
+        W[(_W_LDL + 9) * L + l] = f[9]
 
 
 @njit(cache=True, error_model="numpy", fastmath=_FASTMATH, inline="always")
