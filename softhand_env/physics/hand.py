@@ -244,6 +244,17 @@ def _finish_step(FLAGS, Y, Y_PREV, PRM, DIAG, TIME, ch_limit, dn_limit, base_lim
     return failed, grasped, reason
 
 
+@njit(cache=True)
+def _constraint_errors(Y, PRM, OUT):
+    """max |C^H| (m) and max |C^N| (m/s) over the two fingers of each state Y (N, 20) with
+    parameters PRM (N, N_PARAMS), into OUT (N, 2), in one compiled call."""
+    res = np.empty(4)
+    for i in range(Y.shape[0]):
+        constraint_residuals(Y[i], PRM[i], res)
+        OUT[i, 0] = max(abs(res[0]), abs(res[1]))
+        OUT[i, 1] = max(abs(res[2]), abs(res[3]))
+
+
 class HandReadouts(NamedTuple):
     """The named read-outs of every hand at one instant (fresh arrays, leading hand axis N).
 
@@ -588,11 +599,8 @@ class HandPhysics:
     def constraint_error(self) -> np.ndarray:
         """max |C^H| (m) and max |C^N| (m/s) over the two fingers at the current states,
         shape (2,) or (N, 2)."""
-        res = np.empty(4)
         out = np.empty((self._n, 2))
-        for i in range(self._n):
-            constraint_residuals(self._y[i], self._prm[i], res)
-            out[i] = (max(abs(res[0]), abs(res[1])), max(abs(res[2]), abs(res[3])))
+        _constraint_errors(self._y, self._prm, out)
         return out if self._batched else out[0]
 
     @property
