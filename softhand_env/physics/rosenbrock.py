@@ -166,11 +166,11 @@ _W_MX, _W_MO, _W_M1, _W_M2, _W_MD = range(12, 17)
 # e = M^-1 (D + g Kp + g^2 Ki) and Delta^-1 = 1 / (1 + g e) on theta_1, theta_2, d_n, d_t
 # (zero and one on the object's coordinates)
 _W_ET1, _W_ET2, _W_EN, _W_ETT, _W_DT1, _W_DT2, _W_DN, _W_DTT = range(17, 25)
-# kappa of the holonomic and the rolling rows
-_W_KAPH, _W_KAPN = 25, 26
+# kappa of the holonomic and the rolling rows, and 1 / (1 + g kappa) of both
+_W_KAPH, _W_KAPN, _W_IKH, _W_IKN = 25, 26, 27, 28
 # G = Phi diag(M^-1 Delta^-1) Phi^T = L D L^T: L10 L20 L30 L21 L31 L32, 1/D (10)
-_W_LDL = 27
-_NW = 37
+_W_LDL = 29
+_NW = 39
 
 
 @njit(cache=True, error_model="numpy", fastmath=_FASTMATH, inline="always")
@@ -347,10 +347,10 @@ def _axpy9(A, row, l, x, mx, mo, m1, m2, md, d):
 
 
 @njit(cache=True, error_model="numpy", fastmath=_FASTMATH)
-def _masses_lanes(Pl, W):
-    """M^-1 of every lane of a block (parameters Pl, _NPU*LANES) into W (_NW*LANES)."""
+def _masses_lanes(Pl, W, nl):
+    """M^-1 of lanes 0..nl-1 of a block (parameters Pl, _NPU*LANES) into W (_NW*LANES)."""
     L = LANES
-    for l in range(L):
+    for l in range(nl):
         W[_W_MX * L + l] = 1.0 / Pl[P_MOBJ * L + l]
         W[_W_MO * L + l] = 1.0 / Pl[P_IOBJ * L + l]
         W[_W_M1 * L + l] = 1.0 / Pl[P_I1 * L + l]
@@ -386,8 +386,12 @@ def _setup_lanes(Pl, g, W, nl):
         W[_W_DN * L + l] = dn
         W[_W_DTT * L + l] = dtt
         alpha = Pl[P_ALPHA * L + l]
-        W[_W_KAPH * L + l] = 2.0 * alpha + g * alpha * alpha
-        W[_W_KAPN * L + l] = Pl[P_BETA * L + l]
+        kh = 2.0 * alpha + g * alpha * alpha
+        kn = Pl[P_BETA * L + l]
+        W[_W_KAPH * L + l] = kh
+        W[_W_KAPN * L + l] = kn
+        W[_W_IKH * L + l] = 1.0 / (1.0 + g * kh)
+        W[_W_IKN * L + l] = 1.0 / (1.0 + g * kn)
         f = _gram_ldl(_load_phi(W, l), W[_W_MX * L + l], W[_W_MO * L + l], m1, dt1, m2,
                       dt2, md, dn, dtt)
         W[(_W_LDL + 0) * L + l] = f[0]
@@ -480,8 +484,9 @@ def _solve_lanes(R, W, Pl, g, Kout, MU, nl):
             W[(_W_LDL + 6) * L + l], W[(_W_LDL + 7) * L + l], W[(_W_LDL + 8) * L + l],
             W[(_W_LDL + 9) * L + l],
         )
-        v0, v1, v2, v3 = _ldl4_solve(f, r0 / (1.0 + g * kh), r1 / (1.0 + g * kh),
-                                     r2 / (1.0 + g * kn), r3 / (1.0 + g * kn))
+        ikh = W[_W_IKH * L + l]
+        ikn = W[_W_IKN * L + l]
+        v0, v1, v2, v3 = _ldl4_solve(f, r0 * ikh, r1 * ikh, r2 * ikn, r3 * ikn)
         MU[0 * L + l] = v0
         MU[1 * L + l] = v1
         MU[2 * L + l] = v2
@@ -504,28 +509,38 @@ def _solve_lanes(R, W, Pl, g, Kout, MU, nl):
 
 @njit(cache=True, error_model="numpy")
 def _ros2_lanes(Yl, Pl, h, W, K1, K2, F1, F2, Tl, I1, I2, Il, nl):
-    """One ROS2 step of every lane in place; F1 (_NK*LANES) must hold f(Yl) on entry (the
+    """One ROS2 step of lanes 0..nl-1 in place; F1 (_NK*LANES) must hold f(Yl) on entry (the
     stage-1 evaluation, also the source of the step's residuals) and W the Phi of Yl; adds
-    the step's impulses to Il (4*LANES)."""
+    the step's impulses to Il (4*LANES). The combinations run over the rows and, inside, the
+    nl lanes (unit stride: vectorised)."""
     g = GAMMA * h
     L = LANES
     _setup_lanes(Pl, g, W, nl)
     _solve_lanes(F1, W, Pl, g, K1, I1, nl)
     # multiplier-integral stage 1: lambda(y_n) + g L_W k1
-    for i in range(4 * L):
-        I1[i] = F1[_R_LAM * L + i] + g * I1[i]
-    for i in range(NY * L):
-        Tl[i] = Yl[i] + h * K1[i]
+    for r in range(4):
+        for l in range(nl):
+            I1[r * L + l] = F1[(_R_LAM + r) * L + l] + g * I1[r * L + l]
+    for j in range(NY):
+        for l in range(nl):
+            Tl[j * L + l] = Yl[j * L + l] + h * K1[j * L + l]
     _rhs_lanes(Tl, Pl, F2, nl)
-    for i in range(NY * L):
-        F2[i] = F2[i] - 2.0 * K1[i]
+    for j in range(NY):
+        for l in range(nl):
+            F2[j * L + l] = F2[j * L + l] - 2.0 * K1[j * L + l]
     _solve_lanes(F2, W, Pl, g, K2, I2, nl)
-    for i in range(4 * L):
-        I2[i] = F2[_R_LAM * L + i] - 2.0 * I1[i] + g * I2[i]
-    for i in range(NY * L):
-        Yl[i] += 1.5 * h * K1[i] + 0.5 * h * K2[i]
-    for i in range(4 * L):
-        Il[i] += 1.5 * h * I1[i] + 0.5 * h * I2[i]
+    for r in range(4):
+        for l in range(nl):
+            I2[r * L + l] = (F2[(_R_LAM + r) * L + l] - 2.0 * I1[r * L + l]
+                             + g * I2[r * L + l])
+    a = 1.5 * h
+    b = 0.5 * h
+    for j in range(NY):
+        for l in range(nl):
+            Yl[j * L + l] += a * K1[j * L + l] + b * K2[j * L + l]
+    for r in range(4):
+        for l in range(nl):
+            Il[r * L + l] += a * I1[r * L + l] + b * I2[r * L + l]
 
 
 @njit(cache=True, error_model="numpy", fastmath=_FASTMATH)
@@ -602,7 +617,7 @@ def _advance_block(Y, U, PRM, n, H, ch_limit, DIAG, FLAGS, systems):
     T = n * dt
     n_ramp, k_main, h_main = _schedule(T, H)
     scale = T if k_main == 0 else H
-    _masses_lanes(Pl, W)
+    _masses_lanes(Pl, W, nl)
     _phi_lanes(Yl, Pl, W, nl)
     n_live = m
     t = 0.0
@@ -800,7 +815,7 @@ def ros2_step(y, u, prm, h):
     I1 = np.zeros(4 * LANES)
     I2 = np.zeros(4 * LANES)
     Il = np.zeros(4 * LANES)
-    _masses_lanes(Pl, W)
+    _masses_lanes(Pl, W, 1)
     _phi_lanes(Yl, Pl, W, 1)
     _rhs_lanes(Yl, Pl, F1, 1)
     _ros2_lanes(Yl, Pl, h, W, K1, K2, F1, F2, Tl, I1, I2, Il, 1)
