@@ -67,10 +67,15 @@ stages are ``kI1 = lambda(y_n) + g L k1`` and
 ``kI2 = lambda(y_n + h k1) - 2 kI1 + g L k2``, ``I += 3/2 h kI1 + 1/2 h kI2``.
 
 Batches: :func:`advance_batch` integrates blocks of :data:`.kernel.LANES` systems in the
-structure-of-arrays lanes of :mod:`.kernel` (the same right-hand side source, vectorised; the
-step data, solves and projection run lane by lane in scalar code), in parallel over blocks.
-A system integrated alone or in any batch follows the same arithmetic, so it ends bit for
-bit equal. All systems of a call must share ``dt`` (one schedule).
+structure-of-arrays lanes of :mod:`.kernel` (the same right-hand side source, vectorised). The
+step data, the solves and the projection are lane kernels of the same kind: one loop over the
+lanes of a block whose body is straight-line code (the non-zero entries of Phi written out,
+the 4 x 4 factorisation and solves unrolled, M^-1 and 1 / (1 + g kappa) computed once per
+block or step instead of divided inside), so that LLVM vectorises them across systems; a
+block's step data also live in structure-of-arrays form (``W[row * LANES + lane]``). Blocks run
+in parallel above :data:`PARALLEL_MIN_WORK` system-steps, on the calling thread below. A
+system integrated alone or in any batch follows the same arithmetic, so it ends bit for bit
+equal. All systems of a call must share ``dt`` (one schedule).
 """
 
 from __future__ import annotations

@@ -18,13 +18,18 @@ ceiling: RK4 substeps per second of
 The integrator comparison (:func:`compare_integrators`, printed first; ``--compare-only``
 prints only it, ``--no-compare`` skips it) measures ROS2 at its default step
 (``hand_overrides={"integrator": "ros2"}``) against RK4 in the same run and prints one line
-``fast/rk4 speed ratio: <float>`` per figure: right-hand-side evaluations per simulated
-second (counted from the step schedules of a 20 ms control step), the single environment
-(``SoftHandPose-v0``, random actions, resets included), the native vector environment at N =
-``--compare-n`` (default 512), and the Random id (``SoftHandPoseRandom-v0``: RK4 at its 0.05
-ms). The anchor rows (:mod:`softhand_env.tools.bench_mujoco`: MuJoCo's Reacher-v5 and
-Pusher-v5, skipped without ``mujoco``) give simulated seconds per wall second next to the
-soft hand's.
+``fast/rk4 speed ratio: <float>`` per figure (the median over the pairs, followed by min /
+median / max): right-hand-side evaluations per simulated second (counted from the step
+schedules of a 20 ms control step), the single environment (``SoftHandPose-v0``, random
+actions, resets included), the native vector environment at N = ``--compare-n`` (default
+512; at least :data:`VECTOR_STEPS_MIN` vector steps a run), and the Random id
+(``SoftHandPoseRandom-v0``: RK4 at its 0.05 ms). The timed figures are paired: both
+environments are built, then run in turn (RK4, ROS2, RK4, ...) ``--repeats`` times, and each
+ratio divides two runs made back to back, so that the ratios hold on a machine whose speed
+drifts (rates are the medians). The anchor rows give simulated seconds per wall second of
+``SoftHandPose-v0`` under both integrators (the single-env medians) and of MuJoCo's
+Reacher-v5 and Pusher-v5 (:mod:`softhand_env.tools.bench_mujoco`, medians; skipped without
+``mujoco``), measured in the same run.
 """
 
 from __future__ import annotations
