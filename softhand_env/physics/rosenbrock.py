@@ -512,40 +512,57 @@ def _solve_lanes(R, W, Pl, g, Kout, MU, nl):
         Kout[(2 * NQ + 1) * L + l] = R[(2 * NQ + 1) * L + l] + g * kq[4]
 
 
+@njit(cache=True, error_model="numpy", inline="always")
+def _axpby(D, od, X, ox, a, Y, oy, rows, nl):
+    """D[od + i] = X[ox + i] + a Y[oy + i] over ``rows`` rows (of LANES entries) of the lanes
+    0..nl-1 of structure-of-arrays blocks: for nl > 2 one flat unit-stride loop over whole
+    rows (vectorised; the spare lanes hold finite values nobody reads), else lane by lane
+    (a vectorised loop of one or two iterations per row costs more than the arithmetic)."""
+    L = LANES
+    if nl > 2:
+        for i in range(rows * L):
+            D[od + i] = X[ox + i] + a * Y[oy + i]
+    else:
+        for l in range(nl):
+            for j in range(rows):
+                D[od + j * L + l] = X[ox + j * L + l] + a * Y[oy + j * L + l]
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _axpbypcz(D, X, a, Y, b, Z, rows, nl):
+    """D[i] = X[i] + (a Y[i] + b Z[i]) over ``rows`` rows of lanes 0..nl-1 (as
+    :func:`_axpby`)."""
+    L = LANES
+    if nl > 2:
+        for i in range(rows * L):
+            D[i] = X[i] + (a * Y[i] + b * Z[i])
+    else:
+        for l in range(nl):
+            for j in range(rows):
+                i = j * L + l
+                D[i] = X[i] + (a * Y[i] + b * Z[i])
+
+
 @njit(cache=True, error_model="numpy")
 def _ros2_lanes(Yl, Pl, h, W, K1, K2, F1, F2, Tl, I1, I2, Il, nl):
     """One ROS2 step of lanes 0..nl-1 in place; F1 (_NK*LANES) must hold f(Yl) on entry (the
     stage-1 evaluation, also the source of the step's residuals) and W the Phi of Yl; adds
-    the step's impulses to Il (4*LANES). The combinations run over the rows and, inside, the
-    nl lanes (unit stride: vectorised)."""
+    the step's impulses to Il (4*LANES)."""
     g = GAMMA * h
     L = LANES
     _setup_lanes(Pl, g, W, nl)
     _solve_lanes(F1, W, Pl, g, K1, I1, nl)
     # multiplier-integral stage 1: lambda(y_n) + g L_W k1
-    for r in range(4):
-        for l in range(nl):
-            I1[r * L + l] = F1[(_R_LAM + r) * L + l] + g * I1[r * L + l]
-    for j in range(NY):
-        for l in range(nl):
-            Tl[j * L + l] = Yl[j * L + l] + h * K1[j * L + l]
+    _axpby(I1, 0, F1, _R_LAM * L, g, I1, 0, 4, nl)
+    _axpby(Tl, 0, Yl, 0, h, K1, 0, NY, nl)
     _rhs_lanes(Tl, Pl, F2, nl)
-    for j in range(NY):
-        for l in range(nl):
-            F2[j * L + l] = F2[j * L + l] - 2.0 * K1[j * L + l]
+    _axpby(F2, 0, F2, 0, -2.0, K1, 0, NY, nl)
     _solve_lanes(F2, W, Pl, g, K2, I2, nl)
-    for r in range(4):
-        for l in range(nl):
-            I2[r * L + l] = (F2[(_R_LAM + r) * L + l] - 2.0 * I1[r * L + l]
-                             + g * I2[r * L + l])
-    a = 1.5 * h
-    b = 0.5 * h
-    for j in range(NY):
-        for l in range(nl):
-            Yl[j * L + l] += a * K1[j * L + l] + b * K2[j * L + l]
-    for r in range(4):
-        for l in range(nl):
-            Il[r * L + l] += a * I1[r * L + l] + b * I2[r * L + l]
+    # multiplier-integral stage 2: lambda(y_n + h k1) - 2 kI1 + g L_W k2
+    _axpby(I2, 0, F2, _R_LAM * L, g, I2, 0, 4, nl)
+    _axpby(I2, 0, I2, 0, -2.0, I1, 0, 4, nl)
+    _axpbypcz(Yl, Yl, 1.5 * h, K1, 0.5 * h, K2, NY, nl)
+    _axpbypcz(Il, Il, 1.5 * h, I1, 0.5 * h, I2, 4, nl)
 
 
 @njit(cache=True, error_model="numpy", fastmath=_FASTMATH)
