@@ -198,7 +198,10 @@ class GoalTask(Task):
 
     def evaluate(self, pose, goal, ctrl, failed, grasped):
         err = 0.0
-        if isinstance(failed, bool):
+        if isinstance(failed, bool) and isinstance(grasped, (bool, np.bool_)) and all(
+            isinstance(pose[t.index], float) and isinstance(g, float)
+            for t, g in zip(self.targets, goal, strict=True)
+        ):
             # one environment on Python scalars: Python bools (a NumPy bool combined with a
             # Python one costs a microsecond a time); the same numbers as a batch's row
             success = bool(grasped) and not failed  # a failed step never succeeds
