@@ -190,7 +190,7 @@ class EpisodeBatch:
         grasped = (r.deformation[:, 0] > 0.0) & (r.deformation[:, 1] > 0.0)
         _, success = self._evaluate(r.object_pose, np.zeros(self.num_envs),
                                     np.zeros(self.num_envs, dtype=bool), grasped)
-        self.constraint_error[mask] = p.constraint_error.reshape(self.num_envs, 2)[mask]
+        self.constraint_error[mask] = p.constraint_errors(np.flatnonzero(mask))
         self.grasped[mask] = grasped[mask]
         self.success[mask] = np.broadcast_to(success, (self.num_envs,))[mask]
         layout = self.cfg.layout

@@ -244,6 +244,18 @@ def _finish_step(FLAGS, Y, Y_PREV, PRM, DIAG, TIME, ch_limit, dn_limit, base_lim
     return failed, grasped, reason
 
 
+@njit(cache=True)
+def _constraint_errors(Y, PRM, ROWS, OUT):
+    """max |C^H| (m) and max |C^N| (m/s) over the two fingers of the states Y[ROWS[k]] (Y
+    (N, 20), parameters PRM (N, N_PARAMS)) into OUT[k] (OUT (K, 2))."""
+    res = np.empty(4)
+    for k in range(ROWS.shape[0]):
+        i = ROWS[k]
+        constraint_residuals(Y[i], PRM[i], res)
+        OUT[k, 0] = max(abs(res[0]), abs(res[1]))
+        OUT[k, 1] = max(abs(res[2]), abs(res[3]))
+
+
 class HandReadouts(NamedTuple):
     """The named read-outs of every hand at one instant (fresh arrays, leading hand axis N).
 
@@ -588,12 +600,15 @@ class HandPhysics:
     def constraint_error(self) -> np.ndarray:
         """max |C^H| (m) and max |C^N| (m/s) over the two fingers at the current states,
         shape (2,) or (N, 2)."""
-        res = np.empty(4)
-        out = np.empty((self._n, 2))
-        for i in range(self._n):
-            constraint_residuals(self._y[i], self._prm[i], res)
-            out[i] = (max(abs(res[0]), abs(res[1])), max(abs(res[2]), abs(res[3])))
+        out = self.constraint_errors(np.arange(self._n))
         return out if self._batched else out[0]
+
+    def constraint_errors(self, rows: np.ndarray) -> np.ndarray:
+        """:attr:`constraint_error` of the hands ``rows`` (int array (K,)), shape (K, 2), in
+        one compiled call."""
+        out = np.empty((len(rows), 2))
+        _constraint_errors(self._y, self._prm, np.asarray(rows, dtype=np.int64), out)
+        return out
 
     @property
     def joint_torques(self) -> np.ndarray:

@@ -67,10 +67,15 @@ stages are ``kI1 = lambda(y_n) + g L k1`` and
 ``kI2 = lambda(y_n + h k1) - 2 kI1 + g L k2``, ``I += 3/2 h kI1 + 1/2 h kI2``.
 
 Batches: :func:`advance_batch` integrates blocks of :data:`.kernel.LANES` systems in the
-structure-of-arrays lanes of :mod:`.kernel` (the same right-hand side source, vectorised; the
-step data, solves and projection run lane by lane in scalar code), in parallel over blocks.
-A system integrated alone or in any batch follows the same arithmetic, so it ends bit for
-bit equal. All systems of a call must share ``dt`` (one schedule).
+structure-of-arrays lanes of :mod:`.kernel` (the same right-hand side source, vectorised). The
+step data, the solves and the projection are lane kernels of the same kind: one loop over the
+lanes of a block whose body is straight-line code (the non-zero entries of Phi written out,
+the 4 x 4 factorisation and solves unrolled, M^-1 and 1 / (1 + g kappa) computed once per
+block or step instead of divided inside), so that LLVM vectorises them across systems; a
+block's step data also live in structure-of-arrays form (``W[row * LANES + lane]``). Blocks run
+in parallel above :data:`PARALLEL_MIN_WORK` system-steps, on the calling thread below. A
+system integrated alone or in any batch follows the same arithmetic, so it ends bit for bit
+equal. All systems of a call must share ``dt`` (one schedule).
 """
 
 from __future__ import annotations
@@ -96,8 +101,6 @@ from softhand_env.physics.kernel import (
 )
 from softhand_env.physics.model import (
     _FASTMATH,
-    DN_1,
-    DT_1,
     N_PARAMS,
     NQ,
     NY,
@@ -114,7 +117,6 @@ from softhand_env.physics.model import (
     P_KP,
     P_MDEF,
     P_MOBJ,
-    TH_1,
     TH_OBJ,
     _finger,
     sincos,
@@ -156,159 +158,264 @@ def rhs_evaluations(T: float, H: float) -> int:
     return 2 * len(step_schedule(T, H)) + 1
 
 
-# per-lane step data W[l, :] (one row per lane of a block)
-_W_PHI = 0  # Phi (4 x 9, row-major): holonomic rows 0-1, rolling rows 2-3
-_W_MI = 36  # M^-1 (9)
-_W_E = 45  # e = M^-1 D + g M^-1 Kp + g^2 M^-1 Ki (the last two on theta_1, theta_2) (9)
-_W_DI = 54  # Delta^-1 = 1 / (1 + g e) (9)
-_W_KAP = 63  # kappa = [2 alpha + g alpha^2 (x2), beta (x2)] (4)
-_W_LDL = 67  # G = Phi diag(M^-1 Delta^-1) Phi^T = L D L^T: L10 L20 L30 L21 L31 L32, 1/D (10)
-_W_CH = 77  # C^H (2) at the state of the last Phi
-_NW = 79
-
-
-@njit(cache=True, error_model="numpy", fastmath=_FASTMATH)
-def _load(Yl, Pl, l, y, prm):
-    """Copy lane ``l`` of the blocks Yl, Pl into y (NY,) and prm (N_PARAMS,)."""
-    for j in range(NY):
-        y[j] = Yl[j * LANES + l]
-    for j in range(N_PARAMS):
-        prm[j] = Pl[j * LANES + l]
-
-
-@njit(cache=True, error_model="numpy", fastmath=_FASTMATH)
-def _phi(y, prm, w):
-    """Phi (:func:`.model.constraint_terms`), M^-1 and C^H of state y into the row w (_NW,)."""
-    so, co = sincos(y[TH_OBJ])
-    s1, A1, B1, E1, F1, _, _, CH1 = _finger(y, prm, 0, co, so)[:8]
-    s2, A2, B2, E2, F2, _, _, CH2 = _finger(y, prm, 1, co, so)[:8]
-    for j in range(36):
-        w[_W_PHI + j] = 0.0
-    w[0] = s1 * co
-    w[1] = s1 * so
-    w[2] = A1
-    w[TH_1] = B1
-    w[DN_1] = 1.0
-    w[9] = s2 * co
-    w[10] = s2 * so
-    w[11] = A2
-    w[9 + TH_1 + 1] = B2
-    w[9 + DN_1 + 1] = 1.0
-    w[18] = -so
-    w[19] = co
-    w[20] = E1
-    w[18 + TH_1] = F1
-    w[18 + DT_1] = 1.0
-    w[27] = -so
-    w[28] = co
-    w[29] = E2
-    w[27 + TH_1 + 1] = F2
-    w[27 + DT_1 + 1] = 1.0
-    w[_W_MI + 0] = 1.0 / prm[P_MOBJ]
-    w[_W_MI + 1] = 1.0 / prm[P_MOBJ]
-    w[_W_MI + 2] = 1.0 / prm[P_IOBJ]
-    w[_W_MI + 3] = 1.0 / prm[P_I1]
-    w[_W_MI + 4] = 1.0 / prm[P_I2]
-    for j in range(5, NQ):
-        w[_W_MI + j] = 1.0 / prm[P_MDEF]
-    w[_W_CH] = CH1
-    w[_W_CH + 1] = CH2
+# Step data of a block in structure-of-arrays form, as the lane kernel's blocks: row r of lane
+# l at W[r * LANES + l]. Every lane kernel below is one loop over the lanes whose body is
+# straight-line code (the sparse entries of Phi written out, the 4 x 4 factorisation and
+# solves unrolled), so that LLVM vectorises it across systems like :func:`.kernel._rhs_lanes`.
+# Phi at the state: the entries of :func:`.model._finger` (the holonomic rows are
+# [sgn co, sgn so, A, (theta_i) B, (d_ni) 1], the rolling ones [-so, co, E, (theta_i) F,
+# (d_ti) 1], sgn = -1, +1) and C^H there
+_W_CO, _W_SO, _W_A1, _W_A2, _W_B1, _W_B2, _W_E1, _W_E2, _W_F1, _W_F2, _W_CH1, _W_CH2 = range(12)
+# M^-1 (x and y share 1 / M_obj, the deformations 1 / m_def), set once per block
+_W_MX, _W_MO, _W_M1, _W_M2, _W_MD = range(12, 17)
+# e = M^-1 (D + g Kp + g^2 Ki) and Delta^-1 = 1 / (1 + g e) on theta_1, theta_2, d_n, d_t
+# (zero and one on the object's coordinates)
+_W_ET1, _W_ET2, _W_EN, _W_ETT, _W_DT1, _W_DT2, _W_DN, _W_DTT = range(17, 25)
+# kappa of the holonomic and the rolling rows, and 1 / (1 + g kappa) of both
+_W_KAPH, _W_KAPN, _W_IKH, _W_IKN = 25, 26, 27, 28
+# G = Phi diag(M^-1 Delta^-1) Phi^T = L D L^T: L10 L20 L30 L21 L31 L32, 1/D (10)
+_W_LDL = 29
+_NW = 39
 
 
 @njit(cache=True, error_model="numpy", fastmath=_FASTMATH, inline="always")
-def _ldl4(G, w, o):
-    """L D L^T of the symmetric 4 x 4 G (only G[i, j], j <= i, read) into w[o:o+10]; a
+def _phi_lane(Yl, Pl, l):
+    """(co, so, A1, A2, B1, B2, E1, E2, F1, F2, CH1, CH2) of lane ``l`` of the block Yl, Pl:
+    the entries of Phi (:func:`.model._finger`) and C^H at its positions."""
+    L = LANES
+    y = (
+        Yl[0 * L + l], Yl[1 * L + l], Yl[2 * L + l], Yl[3 * L + l], Yl[4 * L + l],
+        Yl[5 * L + l], Yl[6 * L + l], Yl[7 * L + l], Yl[8 * L + l], Yl[9 * L + l],
+        Yl[10 * L + l], Yl[11 * L + l], Yl[12 * L + l], Yl[13 * L + l], Yl[14 * L + l],
+        Yl[15 * L + l], Yl[16 * L + l], Yl[17 * L + l],
+    )
+    prm = (
+        Pl[0 * L + l], Pl[1 * L + l], Pl[2 * L + l], Pl[3 * L + l], Pl[4 * L + l],
+        Pl[5 * L + l], Pl[6 * L + l], Pl[7 * L + l], Pl[8 * L + l], Pl[9 * L + l],
+        Pl[10 * L + l], Pl[11 * L + l], Pl[12 * L + l], Pl[13 * L + l], Pl[14 * L + l],
+        Pl[15 * L + l], Pl[16 * L + l], Pl[17 * L + l], Pl[18 * L + l], Pl[19 * L + l],
+        Pl[20 * L + l], Pl[21 * L + l], Pl[22 * L + l],
+    )
+    so, co = sincos(y[TH_OBJ])
+    _, A1, B1, E1, F1, _, _, CH1 = _finger(y, prm, 0, co, so)[:8]
+    _, A2, B2, E2, F2, _, _, CH2 = _finger(y, prm, 1, co, so)[:8]
+    return co, so, A1, A2, B1, B2, E1, E2, F1, F2, CH1, CH2
+
+
+@njit(cache=True, error_model="numpy", fastmath=_FASTMATH, inline="always")
+def _store_phi(W, l, t):
+    """Store the tuple ``t`` of :func:`_phi_lane` in rows _W_CO.._W_CH2 of lane ``l``."""
+    L = LANES
+    W[_W_CO * L + l] = t[0]
+    W[_W_SO * L + l] = t[1]
+    W[_W_A1 * L + l] = t[2]
+    W[_W_A2 * L + l] = t[3]
+    W[_W_B1 * L + l] = t[4]
+    W[_W_B2 * L + l] = t[5]
+    W[_W_E1 * L + l] = t[6]
+    W[_W_E2 * L + l] = t[7]
+    W[_W_F1 * L + l] = t[8]
+    W[_W_F2 * L + l] = t[9]
+    W[_W_CH1 * L + l] = t[10]
+    W[_W_CH2 * L + l] = t[11]
+
+
+@njit(cache=True, error_model="numpy", fastmath=_FASTMATH, inline="always")
+def _load_phi(W, l):
+    """The tuple of :func:`_phi_lane` stored in W for lane ``l``."""
+    L = LANES
+    return (
+        W[_W_CO * L + l], W[_W_SO * L + l], W[_W_A1 * L + l], W[_W_A2 * L + l],
+        W[_W_B1 * L + l], W[_W_B2 * L + l], W[_W_E1 * L + l], W[_W_E2 * L + l],
+        W[_W_F1 * L + l], W[_W_F2 * L + l], W[_W_CH1 * L + l], W[_W_CH2 * L + l],
+    )
+
+
+@njit(cache=True, error_model="numpy", fastmath=_FASTMATH, inline="always")
+def _ldl4(G00, G10, G11, G20, G21, G22, G30, G31, G32, G33):
+    """L D L^T of the symmetric 4 x 4 G: (L10, L20, L30, L21, L31, L32, 1/D0, .., 1/D3); a
     pivot <= 0 gives NaN (the state is then flagged non-finite)."""
-    d0 = G[0, 0]
-    i0 = 1.0 / d0 if d0 > 0.0 else math.nan
-    L10 = G[1, 0] * i0
-    L20 = G[2, 0] * i0
-    L30 = G[3, 0] * i0
-    d1 = G[1, 1] - L10 * G[1, 0]
+    i0 = 1.0 / G00 if G00 > 0.0 else math.nan
+    L10 = G10 * i0
+    L20 = G20 * i0
+    L30 = G30 * i0
+    d1 = G11 - L10 * G10
     i1 = 1.0 / d1 if d1 > 0.0 else math.nan
-    a21 = G[2, 1] - L20 * G[1, 0]
-    a31 = G[3, 1] - L30 * G[1, 0]
+    a21 = G21 - L20 * G10
+    a31 = G31 - L30 * G10
     L21 = a21 * i1
     L31 = a31 * i1
-    d2 = G[2, 2] - L20 * G[2, 0] - L21 * a21
+    d2 = G22 - L20 * G20 - L21 * a21
     i2 = 1.0 / d2 if d2 > 0.0 else math.nan
-    a32 = G[3, 2] - L30 * G[2, 0] - L31 * a21
+    a32 = G32 - L30 * G20 - L31 * a21
     L32 = a32 * i2
-    d3 = G[3, 3] - L30 * G[3, 0] - L31 * a31 - L32 * a32
+    d3 = G33 - L30 * G30 - L31 * a31 - L32 * a32
     i3 = 1.0 / d3 if d3 > 0.0 else math.nan
-    w[o] = L10
-    w[o + 1] = L20
-    w[o + 2] = L30
-    w[o + 3] = L21
-    w[o + 4] = L31
-    w[o + 5] = L32
-    w[o + 6] = i0
-    w[o + 7] = i1
-    w[o + 8] = i2
-    w[o + 9] = i3
+    return L10, L20, L30, L21, L31, L32, i0, i1, i2, i3
 
 
 @njit(cache=True, error_model="numpy", fastmath=_FASTMATH, inline="always")
-def _ldl4_solve(w, o, v):
-    """Solve (L D L^T) x = v in place, the factors at w[o:o+10]."""
-    v[1] -= w[o] * v[0]
-    v[2] -= w[o + 1] * v[0] + w[o + 3] * v[1]
-    v[3] -= w[o + 2] * v[0] + w[o + 4] * v[1] + w[o + 5] * v[2]
-    v[3] *= w[o + 9]
-    v[2] = v[2] * w[o + 8] - w[o + 5] * v[3]
-    v[1] = v[1] * w[o + 7] - w[o + 3] * v[2] - w[o + 4] * v[3]
-    v[0] = v[0] * w[o + 6] - w[o] * v[1] - w[o + 1] * v[2] - w[o + 2] * v[3]
+def _gram_ldl(t, mx, mo, m1, d1, m2, d2, md, dn, dt):
+    """L D L^T (:func:`_ldl4`) of G = Phi diag(M^-1 d) Phi^T for Phi of the tuple ``t``
+    (:func:`_phi_lane`), M^-1 = (mx, mx, mo, m1, m2, md, md, md, md) and
+    d = (1, 1, 1, d1, d2, dn, dn, dt, dt), each entry summed over the non-zero products of
+    the two rows in coordinate order (the x and y products of a holonomic and a rolling row
+    cancel exactly and are left out)."""
+    co, so, A1, A2, B1, B2, E1, E2, F1, F2 = t[:10]
+    xc = co * co * mx
+    xs = so * so * mx
+    wn = md * dn
+    wt = md * dt
+    G00 = xc + xs + A1 * A1 * mo + B1 * B1 * m1 * d1 + wn
+    G10 = -co * co * mx + (-so * so * mx) + A2 * A1 * mo
+    G11 = xc + xs + A2 * A2 * mo + B2 * B2 * m2 * d2 + wn
+    G20 = E1 * A1 * mo + F1 * B1 * m1 * d1
+    G21 = E1 * A2 * mo
+    G22 = xs + xc + E1 * E1 * mo + F1 * F1 * m1 * d1 + wt
+    G30 = E2 * A1 * mo
+    G31 = E2 * A2 * mo + F2 * B2 * m2 * d2
+    G32 = xs + xc + E2 * E1 * mo
+    G33 = xs + xc + E2 * E2 * mo + F2 * F2 * m2 * d2 + wt
+    return _ldl4(G00, G10, G11, G20, G21, G22, G30, G31, G32, G33)
 
 
 @njit(cache=True, error_model="numpy", fastmath=_FASTMATH, inline="always")
-def _gram(w, weights, o, G):
-    """G = Phi diag(w[o:o+9] * weights) Phi^T, lower triangle (4 x 4), Phi at w[0:36]."""
-    for a in range(4):
-        for b in range(a + 1):
-            acc = 0.0
-            for j in range(NQ):
-                acc += w[NQ * a + j] * w[NQ * b + j] * w[o + j] * weights[j]
-            G[a, b] = acc
+def _ldl4_solve(f, v0, v1, v2, v3):
+    """Solve (L D L^T) x = v for the factors ``f`` of :func:`_ldl4`; returns x (4 floats)."""
+    v1 -= f[0] * v0
+    v2 -= f[1] * v0 + f[3] * v1
+    v3 -= f[2] * v0 + f[4] * v1 + f[5] * v2
+    v3 *= f[9]
+    v2 = v2 * f[8] - f[5] * v3
+    v1 = v1 * f[7] - f[3] * v2 - f[4] * v3
+    v0 = v0 * f[6] - f[0] * v1 - f[1] * v2 - f[2] * v3
+    return v0, v1, v2, v3
+
+
+@njit(cache=True, error_model="numpy", fastmath=_FASTMATH, inline="always")
+def _phi_t(t, v0, v1, v2, v3):
+    """Phi^T v (9 floats) for Phi of the tuple ``t`` (:func:`_phi_lane`)."""
+    co, so, A1, A2, B1, B2, E1, E2, F1, F2 = t[:10]
+    return (
+        -co * v0 + co * v1 + (-so) * v2 + (-so) * v3,
+        -so * v0 + so * v1 + co * v2 + co * v3,
+        A1 * v0 + A2 * v1 + E1 * v2 + E2 * v3,
+        B1 * v0 + F1 * v2,
+        B2 * v1 + F2 * v3,
+        v0, v1, v2, v3,
+    )
+
+
+@njit(cache=True, error_model="numpy", fastmath=_FASTMATH, inline="always")
+def _phi_v(t, v):
+    """Phi v (4 floats) of a 9-vector ``v`` (indexable) for Phi of the tuple ``t``."""
+    co, so, A1, A2, B1, B2, E1, E2, F1, F2 = t[:10]
+    return (
+        -co * v[0] + (-so) * v[1] + A1 * v[2] + B1 * v[3] + v[5],
+        co * v[0] + so * v[1] + A2 * v[2] + B2 * v[4] + v[6],
+        -so * v[0] + co * v[1] + E1 * v[2] + F1 * v[3] + v[7],
+        -so * v[0] + co * v[1] + E2 * v[2] + F2 * v[4] + v[8],
+    )
+
+
+@njit(cache=True, error_model="numpy", fastmath=_FASTMATH, inline="always")
+def _get9(A, row, l):
+    """Rows row..row+8 of lane ``l`` of the block A, as a 9-tuple."""
+    L = LANES
+    return (A[(row + 0) * L + l], A[(row + 1) * L + l], A[(row + 2) * L + l],
+            A[(row + 3) * L + l], A[(row + 4) * L + l], A[(row + 5) * L + l],
+            A[(row + 6) * L + l], A[(row + 7) * L + l], A[(row + 8) * L + l])
+
+
+@njit(cache=True, error_model="numpy", fastmath=_FASTMATH, inline="always")
+def _put9(A, row, l, v):
+    """Store the 9-tuple ``v`` in rows row..row+8 of lane ``l`` of the block A."""
+    L = LANES
+    A[(row + 0) * L + l] = v[0]
+    A[(row + 1) * L + l] = v[1]
+    A[(row + 2) * L + l] = v[2]
+    A[(row + 3) * L + l] = v[3]
+    A[(row + 4) * L + l] = v[4]
+    A[(row + 5) * L + l] = v[5]
+    A[(row + 6) * L + l] = v[6]
+    A[(row + 7) * L + l] = v[7]
+    A[(row + 8) * L + l] = v[8]
+
+
+@njit(cache=True, error_model="numpy", fastmath=_FASTMATH, inline="always")
+def _axpy9(A, row, l, x, mx, mo, m1, m2, md, d):
+    """Rows row..row+8 of lane ``l`` of A = x + M^-1 d (9-tuples x, d; M^-1 as in
+    :func:`_gram_ldl`)."""
+    _put9(A, row, l, (x[0] + mx * d[0], x[1] + mx * d[1], x[2] + mo * d[2],
+                      x[3] + m1 * d[3], x[4] + m2 * d[4], x[5] + md * d[5],
+                      x[6] + md * d[6], x[7] + md * d[7], x[8] + md * d[8]))
 
 
 @njit(cache=True, error_model="numpy", fastmath=_FASTMATH)
-def _setup_lanes(Yl, Pl, g, W, fresh, nl):
-    """Step data of W = I - g J_W (module doc) for g = gamma h at the states Yl, into W
-    (LANES, _NW); ``fresh=False`` reuses Phi and M^-1 already in W for these states."""
-    y = np.empty(NY)
-    prm = np.empty(N_PARAMS)
-    G = np.empty((4, 4))
-    ones = np.ones(NQ)
+def _masses_lanes(Pl, W, nl):
+    """M^-1 of lanes 0..nl-1 of a block (parameters Pl, _NPU*LANES) into W (_NW*LANES)."""
+    L = LANES
     for l in range(nl):
-        w = W[l]
-        _load(Yl, Pl, l, y, prm)
-        if fresh:
-            _phi(y, prm, w)
-        for j in range(NQ):
-            if j == TH_1 or j == TH_1 + 1:
-                d = prm[P_KD]
-                stiff = g * prm[P_KP] + g * g * prm[P_KI]
-            elif j == DN_1 or j == DN_1 + 1:
-                d = prm[P_CN]
-                stiff = 0.0
-            elif j == DT_1 or j == DT_1 + 1:
-                d = prm[P_CT]
-                stiff = 0.0
-            else:
-                d = 0.0
-                stiff = 0.0
-            e = w[_W_MI + j] * (d + stiff)
-            w[_W_E + j] = e
-            w[_W_DI + j] = 1.0 / (1.0 + g * e)
-        alpha = prm[P_ALPHA]
-        w[_W_KAP] = 2.0 * alpha + g * alpha * alpha
-        w[_W_KAP + 1] = w[_W_KAP]
-        w[_W_KAP + 2] = prm[P_BETA]
-        w[_W_KAP + 3] = prm[P_BETA]
-        for j in range(NQ):
-            ones[j] = w[_W_DI + j]
-        _gram(w, ones, _W_MI, G)
-        _ldl4(G, w, _W_LDL)
+        W[_W_MX * L + l] = 1.0 / Pl[P_MOBJ * L + l]
+        W[_W_MO * L + l] = 1.0 / Pl[P_IOBJ * L + l]
+        W[_W_M1 * L + l] = 1.0 / Pl[P_I1 * L + l]
+        W[_W_M2 * L + l] = 1.0 / Pl[P_I2 * L + l]
+        W[_W_MD * L + l] = 1.0 / Pl[P_MDEF * L + l]
+
+
+@njit(cache=True, error_model="numpy", fastmath=_FASTMATH)
+def _setup_lanes(Pl, g, W, nl):
+    """Step data of W = I - g J_W (module doc) for g = gamma h into W, from the Phi and M^-1
+    in W (those of the states the step starts from)."""
+    L = LANES
+    for l in range(nl):
+        kd = Pl[P_KD * L + l]
+        stiff = g * Pl[P_KP * L + l] + g * g * Pl[P_KI * L + l]
+        m1 = W[_W_M1 * L + l]
+        m2 = W[_W_M2 * L + l]
+        md = W[_W_MD * L + l]
+        et1 = m1 * (kd + stiff)
+        et2 = m2 * (kd + stiff)
+        en = md * (Pl[P_CN * L + l] + 0.0)
+        ett = md * (Pl[P_CT * L + l] + 0.0)
+        dt1 = 1.0 / (1.0 + g * et1)
+        dt2 = 1.0 / (1.0 + g * et2)
+        dn = 1.0 / (1.0 + g * en)
+        dtt = 1.0 / (1.0 + g * ett)
+        W[_W_ET1 * L + l] = et1
+        W[_W_ET2 * L + l] = et2
+        W[_W_EN * L + l] = en
+        W[_W_ETT * L + l] = ett
+        W[_W_DT1 * L + l] = dt1
+        W[_W_DT2 * L + l] = dt2
+        W[_W_DN * L + l] = dn
+        W[_W_DTT * L + l] = dtt
+        alpha = Pl[P_ALPHA * L + l]
+        kh = 2.0 * alpha + g * alpha * alpha
+        kn = Pl[P_BETA * L + l]
+        W[_W_KAPH * L + l] = kh
+        W[_W_KAPN * L + l] = kn
+        W[_W_IKH * L + l] = 1.0 / (1.0 + g * kh)
+        W[_W_IKN * L + l] = 1.0 / (1.0 + g * kn)
+        f = _gram_ldl(_load_phi(W, l), W[_W_MX * L + l], W[_W_MO * L + l], m1, dt1, m2,
+                      dt2, md, dn, dtt)
+        W[(_W_LDL + 0) * L + l] = f[0]
+        W[(_W_LDL + 1) * L + l] = f[1]
+        W[(_W_LDL + 2) * L + l] = f[2]
+        W[(_W_LDL + 3) * L + l] = f[3]
+        W[(_W_LDL + 4) * L + l] = f[4]
+        W[(_W_LDL + 5) * L + l] = f[5]
+        W[(_W_LDL + 6) * L + l] = f[6]
+        W[(_W_LDL + 7) * L + l] = f[7]
+        W[(_W_LDL + 8) * L + l] = f[8]
+        W[(_W_LDL + 9) * L + l] = f[9]
+
+
+@njit(cache=True, error_model="numpy", fastmath=_FASTMATH, inline="always")
+def _term(phi, e, kap, di, c, kq, c2, rq):
+    """phi [(e - kappa) Delta^-1 c + (k - c2) r_q]: one coordinate's share of the multiplier
+    stage's right-hand side (module doc)."""
+    return phi * ((e - kap) * di * c + (kq - c2) * rq)
 
 
 @njit(cache=True, error_model="numpy", fastmath=_FASTMATH)
@@ -316,82 +423,153 @@ def _solve_lanes(R, W, Pl, g, Kout, MU, nl):
     """Solve W k = R (NY*LANES rows) per lane; Kout (NY*LANES) receives k, MU (4*LANES) the
     multiplier stage L_W k (module doc)."""
     L = LANES
-    c = np.empty(NQ)
-    v = np.empty(4)
     for l in range(nl):
-        w = W[l]
         kp_gain = Pl[P_KP * L + l]
         ki_gain = Pl[P_KI * L + l]
         alpha = Pl[P_ALPHA * L + l]
-        for j in range(NQ):
-            c[j] = R[(NQ + j) * L + l]
-        rzt0 = 0.0
-        rzt1 = 0.0
-        for i in range(2):
-            t = TH_1 + i
-            rq = R[t * L + l]
-            rzt = R[(2 * NQ + i) * L + l] + g * rq
-            mi = w[_W_MI + t]
-            c[t] -= g * mi * kp_gain * rq + g * mi * ki_gain * rzt
-            if i == 0:
-                rzt0 = rzt
-            else:
-                rzt1 = rzt
+        t = _load_phi(W, l)
+        co, so, A1, A2, B1, B2, E1, E2, F1, F2 = t[:10]
+        mx = W[_W_MX * L + l]
+        mo = W[_W_MO * L + l]
+        m1 = W[_W_M1 * L + l]
+        m2 = W[_W_M2 * L + l]
+        md = W[_W_MD * L + l]
+        et1 = W[_W_ET1 * L + l]
+        et2 = W[_W_ET2 * L + l]
+        en = W[_W_EN * L + l]
+        ett = W[_W_ETT * L + l]
+        dt1 = W[_W_DT1 * L + l]
+        dt2 = W[_W_DT2 * L + l]
+        dn = W[_W_DN * L + l]
+        dtt = W[_W_DTT * L + l]
+        kh = W[_W_KAPH * L + l]
+        kn = W[_W_KAPN * L + l]
+        rq = (R[0 * L + l], R[1 * L + l], R[2 * L + l], R[3 * L + l], R[4 * L + l],
+              R[5 * L + l], R[6 * L + l], R[7 * L + l], R[8 * L + l])
+        rzt0 = R[(2 * NQ) * L + l] + g * rq[3]
+        rzt1 = R[(2 * NQ + 1) * L + l] + g * rq[4]
+        c = (
+            R[9 * L + l], R[10 * L + l], R[11 * L + l],
+            R[12 * L + l] - (g * m1 * kp_gain * rq[3] + g * m1 * ki_gain * rzt0),
+            R[13 * L + l] - (g * m2 * kp_gain * rq[4] + g * m2 * ki_gain * rzt1),
+            R[14 * L + l], R[15 * L + l], R[16 * L + l], R[17 * L + l],
+        )
+        kq1 = m1 * kp_gain
+        kq2 = m2 * kp_gain
+        c2 = alpha * alpha
         # rhs_a = sum_j Phi_aj [(e_j - kappa_a) Delta^-1_j c_j + (k_j - c2_a) r_q,j]
-        #         + sum_i Phi_a,theta_i M^-1 Ki (r_z,i + g r_q,theta_i)
-        for a in range(4):
-            kap = w[_W_KAP + a]
-            c2 = alpha * alpha if a < 2 else 0.0
-            acc = 0.0
-            for j in range(NQ):
-                phi = w[NQ * a + j]
-                if phi != 0.0:
-                    kq = w[_W_MI + j] * kp_gain if (j == TH_1 or j == TH_1 + 1) else 0.0
-                    acc += phi * ((w[_W_E + j] - kap) * w[_W_DI + j] * c[j]
-                                  + (kq - c2) * R[j * L + l])
-            acc += w[NQ * a + TH_1] * w[_W_MI + TH_1] * ki_gain * rzt0
-            acc += w[NQ * a + TH_1 + 1] * w[_W_MI + TH_1 + 1] * ki_gain * rzt1
-            v[a] = acc / (1.0 + g * kap)
-        _ldl4_solve(w, _W_LDL, v)
-        for a in range(4):
-            MU[a * L + l] = v[a]
-        for j in range(NQ):
-            acc = 0.0
-            for a in range(4):
-                acc += w[NQ * a + j] * v[a]
-            kp = w[_W_DI + j] * (c[j] + g * w[_W_MI + j] * acc)
-            Kout[(NQ + j) * L + l] = kp
-            Kout[j * L + l] = R[j * L + l] + g * kp
-        for i in range(2):
-            Kout[(2 * NQ + i) * L + l] = R[(2 * NQ + i) * L + l] + g * Kout[(TH_1 + i) * L + l]
+        #         + sum_i Phi_a,theta_i M^-1 Ki (r_z,i + g r_q,theta_i), non-zero Phi_aj only
+        r0 = (_term(-co, 0.0, kh, 1.0, c[0], 0.0, c2, rq[0])
+              + _term(-so, 0.0, kh, 1.0, c[1], 0.0, c2, rq[1])
+              + _term(A1, 0.0, kh, 1.0, c[2], 0.0, c2, rq[2])
+              + _term(B1, et1, kh, dt1, c[3], kq1, c2, rq[3])
+              + _term(1.0, en, kh, dn, c[5], 0.0, c2, rq[5])
+              + B1 * m1 * ki_gain * rzt0)
+        r1 = (_term(co, 0.0, kh, 1.0, c[0], 0.0, c2, rq[0])
+              + _term(so, 0.0, kh, 1.0, c[1], 0.0, c2, rq[1])
+              + _term(A2, 0.0, kh, 1.0, c[2], 0.0, c2, rq[2])
+              + _term(B2, et2, kh, dt2, c[4], kq2, c2, rq[4])
+              + _term(1.0, en, kh, dn, c[6], 0.0, c2, rq[6])
+              + B2 * m2 * ki_gain * rzt1)
+        r2 = (_term(-so, 0.0, kn, 1.0, c[0], 0.0, 0.0, rq[0])
+              + _term(co, 0.0, kn, 1.0, c[1], 0.0, 0.0, rq[1])
+              + _term(E1, 0.0, kn, 1.0, c[2], 0.0, 0.0, rq[2])
+              + _term(F1, et1, kn, dt1, c[3], kq1, 0.0, rq[3])
+              + _term(1.0, ett, kn, dtt, c[7], 0.0, 0.0, rq[7])
+              + F1 * m1 * ki_gain * rzt0)
+        r3 = (_term(-so, 0.0, kn, 1.0, c[0], 0.0, 0.0, rq[0])
+              + _term(co, 0.0, kn, 1.0, c[1], 0.0, 0.0, rq[1])
+              + _term(E2, 0.0, kn, 1.0, c[2], 0.0, 0.0, rq[2])
+              + _term(F2, et2, kn, dt2, c[4], kq2, 0.0, rq[4])
+              + _term(1.0, ett, kn, dtt, c[8], 0.0, 0.0, rq[8])
+              + F2 * m2 * ki_gain * rzt1)
+        f = (
+            W[(_W_LDL + 0) * L + l], W[(_W_LDL + 1) * L + l], W[(_W_LDL + 2) * L + l],
+            W[(_W_LDL + 3) * L + l], W[(_W_LDL + 4) * L + l], W[(_W_LDL + 5) * L + l],
+            W[(_W_LDL + 6) * L + l], W[(_W_LDL + 7) * L + l], W[(_W_LDL + 8) * L + l],
+            W[(_W_LDL + 9) * L + l],
+        )
+        ikh = W[_W_IKH * L + l]
+        ikn = W[_W_IKN * L + l]
+        v0, v1, v2, v3 = _ldl4_solve(f, r0 * ikh, r1 * ikh, r2 * ikn, r3 * ikn)
+        MU[0 * L + l] = v0
+        MU[1 * L + l] = v1
+        MU[2 * L + l] = v2
+        MU[3 * L + l] = v3
+        pt = _phi_t(t, v0, v1, v2, v3)
+        kp = (
+            c[0] + g * mx * pt[0], c[1] + g * mx * pt[1], c[2] + g * mo * pt[2],
+            dt1 * (c[3] + g * m1 * pt[3]), dt2 * (c[4] + g * m2 * pt[4]),
+            dn * (c[5] + g * md * pt[5]), dn * (c[6] + g * md * pt[6]),
+            dtt * (c[7] + g * md * pt[7]), dtt * (c[8] + g * md * pt[8]),
+        )
+        _put9(Kout, NQ, l, kp)
+        kq = (rq[0] + g * kp[0], rq[1] + g * kp[1], rq[2] + g * kp[2], rq[3] + g * kp[3],
+              rq[4] + g * kp[4], rq[5] + g * kp[5], rq[6] + g * kp[6], rq[7] + g * kp[7],
+              rq[8] + g * kp[8])
+        _put9(Kout, 0, l, kq)
+        Kout[(2 * NQ) * L + l] = R[(2 * NQ) * L + l] + g * kq[3]
+        Kout[(2 * NQ + 1) * L + l] = R[(2 * NQ + 1) * L + l] + g * kq[4]
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _axpby(D, od, X, ox, a, Y, oy, rows, nl):
+    """D[od + i] = X[ox + i] + a Y[oy + i] over ``rows`` rows (of LANES entries) of the lanes
+    0..nl-1 of structure-of-arrays blocks: for nl > 2 one flat unit-stride loop over whole
+    rows (vectorised; the spare lanes hold finite values nobody reads), else lane by lane
+    (a vectorised loop of one or two iterations per row costs more than the arithmetic)."""
+    L = LANES
+    if nl > 2:
+        for i in range(rows * L):
+            D[od + i] = X[ox + i] + a * Y[oy + i]
+    else:
+        for l in range(nl):
+            for j in range(rows):
+                D[od + j * L + l] = X[ox + j * L + l] + a * Y[oy + j * L + l]
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _axpbypcz(D, X, a, Y, b, Z, rows, nl):
+    """D[i] = X[i] + (a Y[i] + b Z[i]) over ``rows`` rows of lanes 0..nl-1 (as
+    :func:`_axpby`)."""
+    L = LANES
+    if nl > 2:
+        for i in range(rows * L):
+            D[i] = X[i] + (a * Y[i] + b * Z[i])
+    else:
+        for l in range(nl):
+            for j in range(rows):
+                i = j * L + l
+                D[i] = X[i] + (a * Y[i] + b * Z[i])
 
 
 @njit(cache=True, error_model="numpy")
-def _ros2_lanes(Yl, Pl, h, W, fresh, K1, K2, F1, F2, Tl, I1, I2, Il, nl):
-    """One ROS2 step of every lane in place; F1 (_NK*LANES) must hold f(Yl) on entry (the
-    stage-1 evaluation, also the source of the step's residuals); adds the step's impulses to
-    Il (4*LANES). ``fresh``: Phi in W is not that of Yl yet."""
+def _ros2_lanes(Yl, Pl, h, W, K1, K2, F1, F2, Tl, I1, I2, Il, nl):
+    """One ROS2 step of lanes 0..nl-1 in place; F1 (_NK*LANES) must hold f(Yl) on entry (the
+    stage-1 evaluation, also the source of the step's residuals) and W the Phi of Yl; adds
+    the step's impulses to Il (4*LANES)."""
     g = GAMMA * h
     L = LANES
-    _setup_lanes(Yl, Pl, g, W, fresh, nl)
+    _setup_lanes(Pl, g, W, nl)
     _solve_lanes(F1, W, Pl, g, K1, I1, nl)
     # multiplier-integral stage 1: lambda(y_n) + g L_W k1
-    for r in range(4):
-        for l in range(nl):
-            I1[r * L + l] = F1[(_R_LAM + r) * L + l] + g * I1[r * L + l]
-    for i in range(NY * L):
-        Tl[i] = Yl[i] + h * K1[i]
+    _axpby(I1, 0, F1, _R_LAM * L, g, I1, 0, 4, nl)
+    _axpby(Tl, 0, Yl, 0, h, K1, 0, NY, nl)
     _rhs_lanes(Tl, Pl, F2, nl)
-    for i in range(NY * L):
-        F2[i] = F2[i] - 2.0 * K1[i]
+    _axpby(F2, 0, F2, 0, -2.0, K1, 0, NY, nl)
     _solve_lanes(F2, W, Pl, g, K2, I2, nl)
-    for r in range(4):
-        for l in range(nl):
-            I2[r * L + l] = F2[(_R_LAM + r) * L + l] - 2.0 * I1[r * L + l] + g * I2[r * L + l]
-    for i in range(NY * L):
-        Yl[i] += 1.5 * h * K1[i] + 0.5 * h * K2[i]
-    for i in range(4 * L):
-        Il[i] += 1.5 * h * I1[i] + 0.5 * h * I2[i]
+    # multiplier-integral stage 2: lambda(y_n + h k1) - 2 kI1 + g L_W k2
+    _axpby(I2, 0, F2, _R_LAM * L, g, I2, 0, 4, nl)
+    _axpby(I2, 0, I2, 0, -2.0, I1, 0, 4, nl)
+    _axpbypcz(Yl, Yl, 1.5 * h, K1, 0.5 * h, K2, NY, nl)
+    _axpbypcz(Il, Il, 1.5 * h, I1, 0.5 * h, I2, 4, nl)
+
+
+@njit(cache=True, error_model="numpy", fastmath=_FASTMATH)
+def _phi_lanes(Yl, Pl, W, nl):
+    """Phi and C^H of the states of lanes 0..nl-1 into W."""
+    for l in range(nl):
+        _store_phi(W, l, _phi_lane(Yl, Pl, l))
 
 
 @njit(cache=True, error_model="numpy", fastmath=_FASTMATH)
@@ -403,46 +581,29 @@ def _project_lanes(Yl, Pl, W, Il, nl):
     ``dq = M^-1 Phi^T nu``, ``(Phi M^-1 Phi^T) nu = [-C^H; 0]``. Momenta (with Phi at the new
     q): onto Phi p = 0 (C^H-dot = 0, C^N = 0), ``dp = M^-1 Phi^T mu``,
     ``mu = -(Phi M^-1 Phi^T)^-1 Phi p``, whose contact impulse mu (N s) is added to Il. W
-    then holds Phi, M^-1 and C^H of the projected positions."""
+    then holds Phi and C^H of the projected positions."""
     L = LANES
-    y = np.empty(NY)
-    prm = np.empty(N_PARAMS)
-    G = np.empty((4, 4))
-    v = np.empty(4)
-    ones = np.ones(NQ)
     for l in range(nl):
-        w = W[l]
-        _load(Yl, Pl, l, y, prm)
-        _phi(y, prm, w)
-        _gram(w, ones, _W_MI, G)
-        _ldl4(G, w, _W_LDL)
-        v[0] = -w[_W_CH]
-        v[1] = -w[_W_CH + 1]
-        v[2] = 0.0
-        v[3] = 0.0
-        _ldl4_solve(w, _W_LDL, v)
-        for j in range(NQ):
-            acc = 0.0
-            for a in range(4):
-                acc += w[NQ * a + j] * v[a]
-            y[j] += w[_W_MI + j] * acc
-            Yl[j * L + l] = y[j]
-        _phi(y, prm, w)
-        _gram(w, ones, _W_MI, G)
-        _ldl4(G, w, _W_LDL)
-        for a in range(4):
-            acc = 0.0
-            for j in range(NQ):
-                acc += w[NQ * a + j] * y[NQ + j]
-            v[a] = -acc
-        _ldl4_solve(w, _W_LDL, v)
-        for a in range(4):
-            Il[a * L + l] += v[a]
-        for j in range(NQ):
-            acc = 0.0
-            for a in range(4):
-                acc += w[NQ * a + j] * v[a]
-            Yl[(NQ + j) * L + l] = y[NQ + j] + w[_W_MI + j] * acc
+        mx = W[_W_MX * L + l]
+        mo = W[_W_MO * L + l]
+        m1 = W[_W_M1 * L + l]
+        m2 = W[_W_M2 * L + l]
+        md = W[_W_MD * L + l]
+        t = _phi_lane(Yl, Pl, l)
+        f = _gram_ldl(t, mx, mo, m1, 1.0, m2, 1.0, md, 1.0, 1.0)
+        v = _ldl4_solve(f, -t[10], -t[11], 0.0, 0.0)
+        _axpy9(Yl, 0, l, _get9(Yl, 0, l), mx, mo, m1, m2, md, _phi_t(t, v[0], v[1], v[2], v[3]))
+        t = _phi_lane(Yl, Pl, l)
+        _store_phi(W, l, t)
+        f = _gram_ldl(t, mx, mo, m1, 1.0, m2, 1.0, md, 1.0, 1.0)
+        p = _get9(Yl, NQ, l)
+        w = _phi_v(t, p)
+        v = _ldl4_solve(f, -w[0], -w[1], -w[2], -w[3])
+        Il[0 * L + l] += v[0]
+        Il[1 * L + l] += v[1]
+        Il[2 * L + l] += v[2]
+        Il[3 * L + l] += v[3]
+        _axpy9(Yl, NQ, l, p, mx, mo, m1, m2, md, _phi_t(t, v[0], v[1], v[2], v[3]))
 
 
 @njit(cache=True)
@@ -453,7 +614,7 @@ def _advance_block(Y, U, PRM, n, H, ch_limit, DIAG, FLAGS, systems):
     nl = m if m <= 2 else (LANES if m > LANES // 2 else LANES // 2)
     Yl = np.empty(NY * LANES)
     Pl = np.empty(_NPU * LANES)
-    W = np.zeros((LANES, _NW))
+    W = np.zeros(_NW * LANES)
     K1 = np.zeros(NY * LANES)
     K2 = np.zeros(NY * LANES)
     F1 = np.zeros(_NK * LANES)
@@ -478,13 +639,15 @@ def _advance_block(Y, U, PRM, n, H, ch_limit, DIAG, FLAGS, systems):
     T = n * dt
     n_ramp, k_main, h_main = _schedule(T, H)
     scale = T if k_main == 0 else H
+    _masses_lanes(Pl, W, nl)
+    _phi_lanes(Yl, Pl, W, nl)
     n_live = m
     t = 0.0
     for step in range(n_ramp + k_main):
         h = RAMP[step] * scale if step < n_ramp else h_main
         _rhs_lanes(Yl, Pl, F1, nl)
-        # Phi of the state: computed by the projection that ended the previous step
-        _ros2_lanes(Yl, Pl, h, W, step == 0, K1, K2, F1, F2, Tl, I1, I2, Il, nl)
+        # Phi of the state in W: from the projection that ended the previous step
+        _ros2_lanes(Yl, Pl, h, W, K1, K2, F1, F2, Tl, I1, I2, Il, nl)
         _project_lanes(Yl, Pl, W, Il, nl)
         t += h
         if _lanes_suspect(Yl, Pl, CHM, CNM, F1, nl) == 0:
@@ -517,8 +680,7 @@ def _advance_block(Y, U, PRM, n, H, ch_limit, DIAG, FLAGS, systems):
                 _copy_lane(Yl, NY, src, l)
                 _copy_lane(Pl, _NPU, src, l)
                 _copy_lane(Il, 4, src, l)
-                for j in range(_NW):
-                    W[l, j] = W[src, j]
+                _copy_lane(W, _NW, src, l)
     if n_live == 0:
         return
     _finish_lanes(Y, U, PRM, Yl, Il, CHM, CNM, ch_limit, DIAG, FLAGS, systems, live, m, n)
@@ -577,6 +739,15 @@ def advance_batch_serial(Y, U, PRM, n, H, ch_limit, DIAG, FLAGS):
         )
 
 
+#: System-steps (systems x ROS2 steps) below which :func:`advance_batch` runs on the calling
+#: thread: about 4 ms of work (some 85 ns a system-step in lanes; 512 systems over a 20 ms
+#: control step are 11,776). A parallel region costs its launch and, on a loaded machine,
+#: the wait for a descheduled worker thread; with the OpenMP threading layer's default wait
+#: policy that wait measured 15-25 ms a call on a shared 2-core machine, twenty times the
+#: work of 512 systems.
+PARALLEL_MIN_WORK = 50_000
+
+
 def _check_uniform_dt(PRM: np.ndarray) -> None:
     if PRM.shape[0] > 1 and not np.all(PRM[:, P_DT] == PRM[0, P_DT]):
         raise ValueError("every system of a ROS2 call must have the same dt (one schedule)")
@@ -602,11 +773,15 @@ def advance_batch(
     ``DIAG[:, 2]`` receives ``n`` for a completed call, else the elapsed time in whole
     substeps of ``dt`` at the fatal stop. Every system must have the same ``dt``
     (``ValueError`` otherwise).
+
+    A call of fewer than :data:`PARALLEL_MIN_WORK` system-steps runs on the calling thread
+    (the results are the same either way).
     """
     if not H > 0.0:
         raise ValueError(f"H must be > 0 (got {H!r})")
     _check_uniform_dt(PRM)
-    if Y.shape[0] == 1:
+    N = Y.shape[0]
+    if N * len(step_schedule(n * float(PRM[0, P_DT]), H)) < PARALLEL_MIN_WORK:
         advance_batch_serial(Y, U, PRM, n, H, ch_limit, DIAG, FLAGS)
     else:
         _advance_parallel(Y, U, PRM, n, H, ch_limit, DIAG, FLAGS)
@@ -629,6 +804,7 @@ def advance(
 
 __all__ = [
     "GAMMA",
+    "PARALLEL_MIN_WORK",
     "RAMP",
     "advance",
     "advance_batch",
@@ -652,7 +828,7 @@ def ros2_step(y, u, prm, h):
         Pl[j * LANES] = prm[j]
     Pl[_R_U * LANES] = u[0]
     Pl[(_R_U + 1) * LANES] = u[1]
-    W = np.zeros((LANES, _NW))
+    W = np.zeros(_NW * LANES)
     K1 = np.zeros(NY * LANES)
     K2 = np.zeros(NY * LANES)
     F1 = np.zeros(_NK * LANES)
@@ -661,8 +837,10 @@ def ros2_step(y, u, prm, h):
     I1 = np.zeros(4 * LANES)
     I2 = np.zeros(4 * LANES)
     Il = np.zeros(4 * LANES)
+    _masses_lanes(Pl, W, 1)
+    _phi_lanes(Yl, Pl, W, 1)
     _rhs_lanes(Yl, Pl, F1, 1)
-    _ros2_lanes(Yl, Pl, h, W, True, K1, K2, F1, F2, Tl, I1, I2, Il, 1)
+    _ros2_lanes(Yl, Pl, h, W, K1, K2, F1, F2, Tl, I1, I2, Il, 1)
     _project_lanes(Yl, Pl, W, Il, 1)
     for j in range(NY):
         y[j] = Yl[j * LANES]

@@ -18,20 +18,25 @@ ceiling: RK4 substeps per second of
 The integrator comparison (:func:`compare_integrators`, printed first; ``--compare-only``
 prints only it, ``--no-compare`` skips it) measures ROS2 at its default step
 (``hand_overrides={"integrator": "ros2"}``) against RK4 in the same run and prints one line
-``fast/rk4 speed ratio: <float>`` per figure: right-hand-side evaluations per simulated
-second (counted from the step schedules of a 20 ms control step), the single environment
-(``SoftHandPose-v0``, random actions, resets included), the native vector environment at N =
-``--compare-n`` (default 512), and the Random id (``SoftHandPoseRandom-v0``: RK4 at its 0.05
-ms). The anchor rows (:mod:`softhand_env.tools.bench_mujoco`: MuJoCo's Reacher-v5 and
-Pusher-v5, skipped without ``mujoco``) give simulated seconds per wall second next to the
-soft hand's.
+``fast/rk4 speed ratio: <float>`` per figure (the median over the pairs, followed by min /
+median / max): right-hand-side evaluations per simulated second (counted from the step
+schedules of a 20 ms control step), the single environment (``SoftHandPose-v0``, random
+actions, resets included), the native vector environment at N = ``--compare-n`` (default
+512; at least :data:`VECTOR_STEPS_MIN` vector steps a run), and the Random id
+(``SoftHandPoseRandom-v0``: RK4 at its 0.05 ms). The timed figures are paired: both
+environments are built, then run in turn (RK4, ROS2, RK4, ...) ``--repeats`` times, and each
+ratio divides two runs made back to back, so that the ratios hold on a machine whose speed
+drifts (rates are the medians). The anchor rows give simulated seconds per wall second of
+``SoftHandPose-v0`` under both integrators (the single-env medians) and of MuJoCo's
+Reacher-v5 and Pusher-v5 (:mod:`softhand_env.tools.bench_mujoco`, medians; skipped without
+``mujoco``), measured in the same run.
 """
 
 from __future__ import annotations
 
 import time
 from collections.abc import Callable, Sequence
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 
@@ -64,8 +69,9 @@ def bench_kernel(steps: int, repeats: int) -> float:
     return _best(run, repeats)
 
 
-def bench_single(env_id: str, steps: int, repeats: int, **kwargs) -> float:
-    """Env steps per second of ``gym.make(env_id)`` with random actions."""
+def _single_runner(env_id: str, steps: int, **kwargs) -> tuple[Callable[[], float], Any]:
+    """(run, env): ``run()`` times ``steps`` random-action steps of ``gym.make(env_id)``
+    (resets included) and returns env steps per second; the step path is compiled first."""
     import gymnasium as gym
 
     env = gym.make(env_id, **kwargs)
@@ -85,13 +91,13 @@ def bench_single(env_id: str, steps: int, repeats: int, **kwargs) -> float:
                 env.reset()
         return steps / (time.perf_counter() - t0)
 
-    rate = _best(run, repeats)
-    env.close()
-    return rate
+    return run, env
 
 
-def bench_vector(env_id: str, mode: str, n: int, steps: int, repeats: int, **kwargs) -> float:
-    """Env steps per second (N x vector steps) of ``gym.make_vec`` in ``mode``."""
+def _vector_runner(env_id: str, mode: str, n: int, steps: int,
+                   **kwargs) -> tuple[Callable[[], float], Any]:
+    """(run, envs): ``run()`` times ``steps`` random-action steps of ``gym.make_vec`` in
+    ``mode`` and returns env steps per second (N x vector steps)."""
     import gymnasium as gym
 
     envs = gym.make_vec(env_id, num_envs=n, vectorization_mode=mode, **kwargs)
@@ -105,15 +111,65 @@ def bench_vector(env_id: str, mode: str, n: int, steps: int, repeats: int, **kwa
             envs.step(a)
         return steps * n / (time.perf_counter() - t0)
 
+    return run, envs
+
+
+def bench_single(env_id: str, steps: int, repeats: int, **kwargs) -> float:
+    """Env steps per second of ``gym.make(env_id)`` with random actions (best of
+    ``repeats``)."""
+    run, env = _single_runner(env_id, steps, **kwargs)
+    rate = _best(run, repeats)
+    env.close()
+    return rate
+
+
+def bench_vector(env_id: str, mode: str, n: int, steps: int, repeats: int, **kwargs) -> float:
+    """Env steps per second (N x vector steps) of ``gym.make_vec`` in ``mode`` (best of
+    ``repeats``)."""
+    run, envs = _vector_runner(env_id, mode, n, steps, **kwargs)
     rate = _best(run, repeats)
     envs.close()
     return rate
+
+
+class Figure(NamedTuple):
+    """One figure of the integrator comparison.
+
+    ``rk4``, ``fast``: medians of the paired runs (rates, larger is faster; for the RHS
+    counts the exact counts, smaller is cheaper); ``low``, ``median``, ``high``: minimum,
+    median and maximum over the pairs of the fast/rk4 speed ratio (one value for counts).
+    """
+
+    rk4: float
+    fast: float
+    low: float
+    median: float
+    high: float
+
+
+def paired_rates(runs: Sequence[Callable[[], float]], repeats: int) -> list[list[float]]:
+    """Rates of the ``runs`` in turn (A B A B ...), ``repeats`` rounds: one list per run.
+    Pairs of one round ran back to back, so their ratio holds while the machine's speed
+    drifts."""
+    rates: list[list[float]] = [[] for _ in runs]
+    for _ in range(repeats):
+        for out, run in zip(rates, runs, strict=True):
+            out.append(run())
+    return rates
+
+
+def _figure(rk4_rates: Sequence[float], fast_rates: Sequence[float]) -> Figure:
+    ratios = [f / r for r, f in zip(rk4_rates, fast_rates, strict=True)]
+    return Figure(float(np.median(rk4_rates)), float(np.median(fast_rates)),
+                  min(ratios), float(np.median(ratios)), max(ratios))
 
 
 #: Environment of the single and vector figures, and the Random id, of the comparison.
 COMPARE_ID = "SoftHandPose-v0"
 COMPARE_RANDOM_ID = "SoftHandPoseRandom-v0"
 FAST = {"integrator": "ros2"}
+#: Fewest vector steps of a timed run of the comparison's vector figure (its runs are short).
+VECTOR_STEPS_MIN = 24
 
 
 def rhs_per_simulated_second(control_dt: float = 0.02, dt: float = 1e-4,
@@ -128,51 +184,64 @@ def rhs_per_simulated_second(control_dt: float = 0.02, dt: float = 1e-4,
 
 
 def compare_integrators(steps: int, n_vec: int, repeats: int,
-                        show: Callable[[str, float, float], None]) -> dict[str, float]:
-    """ROS2 against RK4 in one run; calls ``show(figure, rk4, fast)`` per figure (rates: larger
-    is faster; RHS evaluations: smaller is cheaper) and returns figure -> fast/rk4 ratio."""
-    ratios: dict[str, float] = {}
+                        show: Callable[[str, Figure], None]) -> dict[str, Figure]:
+    """ROS2 against RK4 in one run, paired: each timed figure builds both environments, then
+    times them in turn (RK4, ROS2, RK4, ...) ``repeats`` times, so that each ratio compares
+    runs made back to back. Calls ``show(name, figure)`` per figure and returns name ->
+    :class:`Figure` (the RHS counts are exact: rk4 and fast are the counts, all three
+    ratios their quotient)."""
+    figures: dict[str, Figure] = {}
 
-    def figure(name: str, rk4: float, fast: float, cost: bool = False) -> None:
-        ratios[name] = rk4 / fast if cost else fast / rk4
-        show(name, rk4, fast)
+    def counted(name: str, rk4: float, fast: float) -> None:
+        figures[name] = Figure(rk4, fast, rk4 / fast, rk4 / fast, rk4 / fast)
+        show(name, figures[name])
+
+    def timed(name: str, make: Callable[[dict[str, Any] | None], Any]) -> None:
+        pairs = [make(kw) for kw in (None, FAST)]
+        rates = paired_rates([run for run, _ in pairs], repeats)
+        for _, env in pairs:
+            env.close()
+        figures[name] = _figure(rates[0], rates[1])
+        show(name, figures[name])
 
     rk4, fast = rhs_per_simulated_second()
-    figure("RHS evaluations per simulated s", rk4, fast, cost=True)
+    counted("RHS evaluations per simulated s", rk4, fast)
     rk4_r, _ = rhs_per_simulated_second(dt=5e-5)
-    figure("RHS evaluations per simulated s (Random ids)", rk4_r, fast, cost=True)
-    single = [bench_single(COMPARE_ID, steps, repeats, hand_overrides=o) for o in (None, FAST)]
-    figure(f"single env {COMPARE_ID} (env steps/s)", single[0], single[1])
-    vsteps = max(steps // n_vec, 4)
-    vec = [bench_vector(COMPARE_ID, "vector_entry_point", n_vec, vsteps, repeats,
-                        hand_overrides=o) for o in (None, FAST)]
-    figure(f"native vector env N={n_vec} (env steps/s)", vec[0], vec[1])
-    rand = [bench_single(COMPARE_RANDOM_ID, steps, repeats, **kw)
-            for kw in ({}, {"hand_overrides": FAST})]
-    figure(f"single env {COMPARE_RANDOM_ID} (env steps/s)", rand[0], rand[1])
-    return ratios
+    counted("RHS evaluations per simulated s (Random ids)", rk4_r, fast)
+    timed(f"single env {COMPARE_ID} (env steps/s)",
+          lambda kw: _single_runner(COMPARE_ID, steps, hand_overrides=kw))
+    vsteps = max(steps // n_vec, VECTOR_STEPS_MIN)
+    timed(f"native vector env N={n_vec} (env steps/s)",
+          lambda kw: _vector_runner(COMPARE_ID, "vector_entry_point", n_vec, vsteps,
+                                    hand_overrides=kw))
+    # the Random id's own hand_overrides ({"dt": 5e-5}) for RK4, replaced for ROS2
+    timed(f"single env {COMPARE_RANDOM_ID} (env steps/s)",
+          lambda kw: _single_runner(COMPARE_RANDOM_ID, steps,
+                                    **({} if kw is None else {"hand_overrides": kw})))
+    return figures
 
 
 def _print_comparison(steps: int, n_vec: int, repeats: int, mujoco_steps: int) -> None:
     from softhand_env.tools import bench_mujoco
 
     print(f"integrators: RK4 (paper, 0.1 ms; Random ids 0.05 ms) vs ROS2 "
-          f"(hand_overrides={FAST}, 1 ms), best of {repeats}")
+          f"(hand_overrides={FAST}, 1 ms); {repeats} paired runs, medians; ratio min / "
+          f"median / max over the pairs")
 
-    def show(name: str, rk4: float, fast: float) -> None:
-        ratio = rk4 / fast if name.startswith("RHS") else fast / rk4
-        print(f"{name:<48}{'rk4':>5}{rk4:>14,.0f}{'fast':>6}{fast:>14,.0f}", flush=True)
-        print(f"  fast/rk4 speed ratio: {ratio:.2f}", flush=True)
+    def show(name: str, fig: Figure) -> None:
+        print(f"{name:<48}{'rk4':>5}{fig.rk4:>14,.0f}{'fast':>6}{fig.fast:>14,.0f}", flush=True)
+        print(f"  fast/rk4 speed ratio: {fig.median:.2f}   (min {fig.low:.2f}, median "
+              f"{fig.median:.2f}, max {fig.high:.2f})", flush=True)
 
-    compare_integrators(steps, n_vec, repeats, show)
-    # simulated seconds per wall second, single env, beside MuJoCo's anchors
+    figures = compare_integrators(steps, n_vec, repeats, show)
+    # simulated seconds per wall second, single env (the medians above), beside MuJoCo's
     import gymnasium as gym
 
     probe: Any = gym.make(COMPARE_ID).unwrapped
     dt = float(probe.dt)
     probe.close()
-    for label, kw in (("rk4", None), ("ros2", FAST)):
-        rate = bench_single(COMPARE_ID, steps, repeats, hand_overrides=kw)
+    single = figures[f"single env {COMPARE_ID} (env steps/s)"]
+    for label, rate in (("rk4", single.rk4), ("ros2", single.fast)):
         print(f"{COMPARE_ID + ' ' + label:<34}{rate * dt:>10,.0f} simulated s / wall s")
     for env_id, anchor in bench_mujoco.bench_anchors(mujoco_steps, repeats).items():
         if anchor is None:
