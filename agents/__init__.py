@@ -6,7 +6,9 @@ Commands (``python -m agents.<name>``, the top level holds only these and three 
   from a privileged teacher), ``evaluate`` (a model or scripted policy on seeded goals),
   ``demo`` (the paper's figures and the headline table), ``pose_figures`` (reachable set and
   manoeuvre of Pose policies), ``learning_curves`` (validation curves of runs),
-  ``bench_train`` (PPO speed, dummy vs native vector env).
+  ``bench_train`` (PPO speed: dummy vs native vector env, and RLlib), ``rllib_train`` (PPO
+  with Ray RLlib, exported as an SB3 run), ``collect`` (Minari datasets of a policy's
+  episodes with the privileged state per step), ``bc`` (behaviour cloning on a dataset).
 
 Sub-packages (libraries; no command imports another command's internals):
 
@@ -22,7 +24,11 @@ Sub-packages (libraries; no command imports another command's internals):
   loop plan;
 * ``play``: the policy of a ``--model`` / ``--policy`` choice, the episode loops of
   ``evaluate`` and ``pose_figures`` and a run's count of scores on the test goals;
-* ``plots``: figures of evaluated episodes and of Pose policies.
+* ``plots``: figures of evaluated episodes and of Pose policies;
+* ``offline``: dataset ids, episode recording (serial or over Ray workers) and Minari writing,
+  the library of ``collect`` and ``bc``;
+* ``rllib``: a hyper-parameter entry as RLlib PPO settings, the training loop and the export
+  of the RLModule into an SB3 run, the library of ``rllib_train``.
 
 Data: ``configs/`` (hyper-parameter files, RL Zoo's dialect, keyed by env id) and ``models/``
 (the shipped models as RL Zoo runs), installed with the package.
