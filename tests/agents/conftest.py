@@ -1,4 +1,5 @@
-"""Fixtures of the agents tests: one step of an SB3 VecEnv next to its single-env twins."""
+"""Fixtures of the agents tests: one step of an SB3 VecEnv next to its single-env twins, and a
+local Ray for the sharding tests."""
 
 from __future__ import annotations
 
@@ -33,3 +34,17 @@ def _step_twins(venv: Any, singles: list[gym.Env], actions: np.ndarray
 def step_twins() -> Callable[..., Any]:
     """:func:`_step_twins`: one step of an SB3 VecEnv and its single-env twins."""
     return _step_twins
+
+
+@pytest.fixture(scope="module")
+def local_ray():
+    """A Ray of this machine with 2 CPUs for one test module (started with
+    ``address="local"``, so never a cluster a ``ray start`` left behind), shut down after it;
+    the module is skipped where Ray is not installed."""
+    ray = pytest.importorskip("ray")
+    started = not ray.is_initialized()
+    if started:
+        ray.init(address="local", num_cpus=2, include_dashboard=False)
+    yield ray
+    if started:
+        ray.shutdown()

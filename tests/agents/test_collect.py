@@ -176,17 +176,6 @@ def test_task_slugs_and_defaults():
         collection.check_seeds(0, d.episodes)
 
 
-@pytest.fixture(scope="module")
-def local_ray():
-    ray = pytest.importorskip("ray")
-    started = not ray.is_initialized()
-    if started:
-        ray.init(address="local", num_cpus=2, include_dashboard=False)
-    yield ray
-    if started:
-        ray.shutdown()
-
-
 def _arrays(dataset):
     out = []
     for ep in dataset.iterate_episodes():

@@ -55,17 +55,6 @@ def test_missing_ray_is_one_line_and_exit_2(monkeypatch, capsys, tmp_path, main,
     assert not any(tmp_path.iterdir())  # refused before any work
 
 
-@pytest.fixture(scope="module")
-def local_ray():
-    ray = pytest.importorskip("ray")
-    started = not ray.is_initialized()
-    if started:
-        ray.init(address="local", num_cpus=2, include_dashboard=False)
-    yield ray
-    if started:
-        ray.shutdown()
-
-
 def test_map_chunks_on_ray_keeps_the_chunk_order(local_ray):
     chunks = sharding.split(list(range(7)), 3)
     assert sharding.map_chunks(_square, chunks, sharding.LOCAL, 2) == [
