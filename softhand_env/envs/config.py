@@ -177,6 +177,11 @@ def build_config(options: EnvOptions) -> EnvConfig:
     if o.rand_sensors and sensors.ideal:
         raise ValueError("rand_sensors=True draws the gains of a sensor model: it needs "
                          "sensor_model='realistic' (got sensor_model='ideal')")
+    if o.sensor_noise_scale != 1.0:
+        if sensors.ideal:
+            raise ValueError("sensor_noise_scale scales the errors of a sensor model: it needs "
+                             "sensor_model='realistic' (got sensor_model='ideal')")
+        sensors = sensors.scaled(float(o.sensor_noise_scale))
     return EnvConfig(
         task=task_obj,
         params=params,

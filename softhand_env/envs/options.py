@@ -267,6 +267,11 @@ class EnvOptions:
                             choices=("ideal", "realistic"))
     rand_sensors: bool = _kw(False, "draw each episode's torque-sensor gain within the sensor "
                              "model's ``torque_gain_tolerance`` (not with ``'ideal'``)", "flag")
+    sensor_noise_scale: float = _kw(1.0, "multiplier of the sensor model's random errors: "
+                                    "encoder, torque and tactile noise and the torque offset "
+                                    "(0: quantised encoders, exact torques and fingertips; "
+                                    "quantisation and ``rand_sensors`` gains unscaled; 1 "
+                                    "with ``'ideal'``)", "number", low=0.0, high=10.0)
     goal_x_range_mm: float | None = _kw(None, "x* ~ U(-r, r) " + _TASK, "number", "mm",
                                         low=0.0, high=100.0, low_open=True)
     goal_theta_range_deg: float | None = _kw(None, "theta* ~ U(-r, r) " + _TASK, "number",

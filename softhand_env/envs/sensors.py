@@ -39,7 +39,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, replace
 from pathlib import Path
 from typing import Any
 
@@ -97,6 +97,21 @@ class SensorSpec:
     def ideal(self) -> bool:
         """The exact read-outs (no sensor model applied)."""
         return self.name == "ideal"
+
+    def scaled(self, scale: float) -> SensorSpec:
+        """This model with its random errors multiplied by ``scale`` (>= 0, dimensionless):
+        ``encoder_noise_deg``, ``torque_noise_nm``, ``torque_bias_nm`` and
+        ``tactile_noise_mm``. The encoder resolution (quantisation) and the torque-gain
+        tolerance (the ``rand_sensors`` randomisation) are kept. ``scale=0`` leaves quantised
+        encoders (and encoder-differenced velocities) with exact torques and fingertips; the
+        generator draws the same numbers at every scale. The name is kept (the
+        ``sensor_noise_scale`` keyword records the scale)."""
+        if not (math.isfinite(scale) and scale >= 0.0):
+            raise ValueError(f"scale must be a finite number >= 0 (got {scale!r})")
+        return replace(self, encoder_noise_deg=scale * self.encoder_noise_deg,
+                       torque_noise_nm=scale * self.torque_noise_nm,
+                       torque_bias_nm=scale * self.torque_bias_nm,
+                       tactile_noise_mm=scale * self.tactile_noise_mm)
 
     def as_dict(self) -> dict[str, Any]:
         """The values as the YAML holds them, with the name."""

@@ -330,6 +330,7 @@ class SoftHandEnv(gym.Env):
         setpoint_latency: int = 0,
         sensor_model: str = "ideal",
         rand_sensors: bool = False,
+        sensor_noise_scale: float = 1.0,
         goal_x_range_mm: float | None = None,
         goal_theta_range_deg: float | None = None,
         x_tolerance_mm: float | None = None,
