@@ -251,3 +251,57 @@ def test_realistic_observation_stays_scaled(env_id):
     assert np.all(rms[[0, 1, 6, 7]] > 0)  # angles and torques are sensed, not copied
     if "Random" not in env_id:
         np.testing.assert_array_equal(rms[4:6], 0.0)
+
+
+# ---------------------------------------------------------------------- sensor_noise_scale
+def test_sensor_noise_scale_scales_the_noise_and_offset_not_the_quantisation_or_gains():
+    assert SPEC.scaled(1.0) == SPEC
+    half = SPEC.scaled(0.5)
+    assert half.encoder_noise_deg == 0.5 * SPEC.encoder_noise_deg > 0
+    assert half.torque_noise_nm == 0.5 * SPEC.torque_noise_nm > 0
+    assert half.torque_bias_nm == 0.5 * SPEC.torque_bias_nm > 0
+    assert half.tactile_noise_mm == 0.5 * SPEC.tactile_noise_mm > 0
+    assert half.encoder_resolution_deg == SPEC.encoder_resolution_deg
+    assert half.torque_gain_tolerance == SPEC.torque_gain_tolerance
+    assert half.name == "realistic"
+    env = gym.make("SoftHandPoseRandom-v1", sensor_noise_scale=2.0)
+    assert env.unwrapped.sensors == SPEC.scaled(2.0)
+    assert env.unwrapped.options.sensor_noise_scale == 2.0
+    # the registered ids keep their sensing
+    assert gym.make("SoftHandPose-v1").unwrapped.sensors == SPEC
+
+
+@pytest.mark.parametrize("bad", [-0.5, 10.5, float("nan"), float("inf")])
+def test_sensor_noise_scale_range_is_checked(bad):
+    with pytest.raises(ValueError, match=r"sensor_noise_scale must be a number in \[0, 10\]"):
+        gym.make("SoftHandPose-v1", sensor_noise_scale=bad)
+
+
+def test_sensor_noise_scale_needs_a_sensor_model():
+    with pytest.raises(ValueError, match="sensor_noise_scale .* sensor_model='realistic'"):
+        gym.make("SoftHandPose-v0", sensor_noise_scale=0.0)
+    assert gym.make("SoftHandPose-v0", sensor_noise_scale=1.0).unwrapped.sensors.ideal
+
+
+def test_sensor_noise_scale_changes_the_observation_not_the_physics():
+    actions = _actions(15, seed=4)
+    runs = {s: _episode(gym.make("SoftHandPose-v1", obs_mode="proprio_tactile",
+                                 sensor_noise_scale=s), 21, actions)
+            for s in (0.0, 1.0)}
+    assert len(runs[0.0]) == len(runs[1.0]) > 5
+    for (o0, th0, tau0, i0), (o1, th1, tau1, i1) in zip(runs[0.0], runs[1.0], strict=True):
+        # the same true state, info and goal ...
+        np.testing.assert_array_equal(th0, th1)
+        np.testing.assert_array_equal(tau0, tau1)
+        np.testing.assert_array_equal(i0["object_pose"], i1["object_pose"])
+        np.testing.assert_array_equal(i0["deformation"], i1["deformation"])
+        # ... scale 0 reads exact torques and quantised angles
+        np.testing.assert_allclose(o0[6:8] * TORQUE_SCALE, tau0, rtol=0, atol=1e-5)
+        np.testing.assert_allclose(o0[0:2] * ANGLE_SCALE / Q,
+                                   np.round(o0[0:2] * ANGLE_SCALE / Q), rtol=0, atol=1e-3)
+    # ... while scale 1 reads offset, noisy torques
+    assert not np.allclose(np.array([r[0][6:8] for r in runs[1.0]]) * TORQUE_SCALE,
+                           np.array([r[2] for r in runs[1.0]]), rtol=0, atol=1e-3)
+    obs0 = np.array([r[0] for r in runs[0.0]])
+    obs1 = np.array([r[0] for r in runs[1.0]])
+    assert not np.array_equal(obs0, obs1)
