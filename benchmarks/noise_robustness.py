@@ -178,14 +178,15 @@ def write_csv(path: Path, outcomes: dict[tuple[str, str | float], Outcome]) -> N
 def plot(path: Path, points: Sequence[str | float],
          outcomes: dict[tuple[str, str | float], Outcome]) -> None:
     """Success (%) with its Wilson 95 % interval against the noise-scale point, one curve
-    per row; the points are evenly spaced (ideal, then the scales in the given order)."""
+    per row; the points are evenly spaced (ideal, a square not joined to the curve, then the
+    scales in the given order)."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
     rows = list(dict.fromkeys(name for name, _ in outcomes))
-    fig, ax = plt.subplots(figsize=(6.0, 3.6), dpi=100)
+    fig, ax = plt.subplots(figsize=(6.0, 4.2), dpi=100)
     xs = list(range(len(points)))
     for j, name in enumerate(rows):
         os_ = [outcomes[(name, p)] for p in points]
@@ -193,8 +194,14 @@ def plot(path: Path, points: Sequence[str | float],
         low = [r - 100 * o.ci[0] for r, o in zip(rate, os_, strict=True)]
         high = [100 * o.ci[1] - r for r, o in zip(rate, os_, strict=True)]
         shift = 0.06 * (j - (len(rows) - 1) / 2)
-        ax.errorbar([x + shift for x in xs], rate, yerr=[low, high], marker="o", capsize=3,
-                    label=f"{ROWS[name].label} on {ROWS[name].env_id}")
+        # the ideal point is a reference, not a scale: drawn unconnected
+        cut = 1 if points and points[0] == IDEAL else 0
+        bar = ax.errorbar([x + shift for x in xs[cut:]], rate[cut:],
+                          yerr=[low[cut:], high[cut:]], marker="o", capsize=3,
+                          label=f"{ROWS[name].label} on {ROWS[name].env_id}")
+        if cut:
+            ax.errorbar([xs[0] + shift], rate[:1], yerr=[low[:1], high[:1]], marker="s",
+                        capsize=3, linestyle="none", color=bar.lines[0].get_color())
     ax.set_xticks(xs, [point_name(p) for p in points])
     ax.set_xlabel("sensing: ideal, or the realistic sensor model's noise x scale")
     ax.set_ylabel("success (%), Wilson 95 % CI")
@@ -202,7 +209,7 @@ def plot(path: Path, points: Sequence[str | float],
     ax.set_title(f"{'/'.join(map(str, sorted(n)))} validation goals per point", fontsize=10)
     ax.set_ylim(-3, 103)
     ax.grid(alpha=0.3)
-    ax.legend(fontsize=7, loc="best")
+    ax.legend(fontsize=7, loc="upper center", bbox_to_anchor=(0.5, -0.2), ncol=1)
     fig.tight_layout()
     fig.savefig(path)
     plt.close(fig)
