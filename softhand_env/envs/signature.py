@@ -40,7 +40,8 @@ The ``-v0`` and ``-v1`` ids are distinct ids (``env_id``), so a model trained on
 is refused on its ``-v1`` id (and on ``-v0`` with ``sensor_model="realistic"``).
 
 Hand parameters are *not* part of the signature: evaluating a policy on another hand (or
-under randomisation, the sensors' per-episode calibration ``rand_sensors`` included) is a
+under randomisation, the sensors' per-episode calibration ``rand_sensors`` and the noise
+scale ``sensor_noise_scale`` included) is a
 legitimate experiment, not a mismatch. Neither are the keywords that
 only decide when an episode ends or how it is rewarded (``terminate_on_success``,
 ``terminate_on_slip``, the reward weights): they change no input or output of the model, so a

@@ -124,7 +124,8 @@ class SoftHandEnv(gym.Env):
     difference of two encoder readings over the control period, motor-current torques
     (0.2 N m noise, a per-episode offset of std 0.1 N m, with ``rand_sensors=True`` a
     per-episode gain within +-10 %) and, with tactile entries, deformations with 0.05 mm
-    noise. The set-point entries are exact. The scaling stays the same, so entries stay
+    noise; ``sensor_noise_scale`` multiplies its noises and torque offset (0: quantisation
+    only). The set-point entries are exact. The scaling stays the same, so entries stay
     O(1). ``obs_noise`` adds Gaussian noise of that standard deviation (scaled units) to each
     frame, after the sensor model (0 unless set or ``randomize=True``; 0.01 on the ``Random``
     ids of both versions). ``info`` keeps the true values, ``env.unwrapped.physics`` the
