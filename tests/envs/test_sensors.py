@@ -289,7 +289,7 @@ def test_sensor_noise_scale_changes_the_observation_not_the_physics():
                                  sensor_noise_scale=s), 21, actions)
             for s in (0.0, 1.0)}
     assert len(runs[0.0]) == len(runs[1.0]) > 5
-    for (o0, th0, tau0, i0), (o1, th1, tau1, i1) in zip(runs[0.0], runs[1.0], strict=True):
+    for (o0, th0, tau0, i0), (_o1, th1, tau1, i1) in zip(runs[0.0], runs[1.0], strict=True):
         # the same true state, info and goal ...
         np.testing.assert_array_equal(th0, th1)
         np.testing.assert_array_equal(tau0, tau1)
