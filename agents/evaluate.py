@@ -78,7 +78,13 @@ from agents.common.cli import (
     run_cli,
 )
 from agents.common.env_factory import goal_seeds, make_env, task_targets
-from agents.common.metrics import ERROR_KEYS, success_count, success_text
+from agents.common.metrics import (
+    ERROR_KEYS,
+    STRICT_TOLERANCE,
+    SUCCESS_TOLERANCE,
+    success_count,
+    success_text,
+)
 from agents.play.choice import SCRIPTED, PolicyChoice, build
 from agents.play.rollout import (
     EvaluationResults,
@@ -206,16 +212,29 @@ def parse_args(argv: Sequence[str] | None = None) -> EvaluateSettings:
 
 
 # --------------------------------------------------------------------------------- output
+def tolerance_text(targets: Sequence[str], strict: bool) -> str:
+    """The tolerance of a success rule on the task's coordinates, e.g. ``"1 mm"`` (Translate),
+    ``"0.5 mm / 0.5 deg"`` (Pose, ``strict``): the benchmark's rule
+    (:data:`~agents.common.metrics.SUCCESS_TOLERANCE`) or the strict one
+    (:data:`~agents.common.metrics.STRICT_TOLERANCE`); ``"the task's rule"`` for the
+    goal-free task."""
+    units = {"x": "mm", "theta": "deg"}
+    values = {t: STRICT_TOLERANCE[t] if strict else SUCCESS_TOLERANCE[t][1] for t in targets}
+    return " / ".join(f"{values[t]:g} {units[t]}" for t in targets) or "the task's rule"
+
+
 def format_table(title: str, summary: dict[str, float], targets: Sequence[str]) -> str:
     """A plain-text table of a summary: each success rate with its count and Wilson 95 %
-    interval (:func:`~agents.common.metrics.success_text`), the strict one (0.5 mm / 0.5 deg)
-    when the summary has it."""
+    interval (:func:`~agents.common.metrics.success_text`): the benchmark's (1 mm / 1 deg on
+    the task's coordinates) and, when the summary has it, the strict one (0.5 mm / 0.5 deg,
+    :func:`~agents.common.metrics.strict_success`) next to it; ``targets`` are the task's
+    coordinates (``"x"``, ``"theta"``)."""
     n = int(summary["n_episodes"])
     rows = [("episodes", f"{n:d}"),
-            ("success rate (1 mm / 1 deg)",
+            (f"success rate ({tolerance_text(targets, strict=False)})",
              success_text(success_count(summary["success_rate"], n), n))]
     if "success_strict" in summary:
-        rows.append(("success rate, strict (0.5 mm / 0.5 deg)",
+        rows.append((f"success rate, strict ({tolerance_text(targets, strict=True)})",
                      success_text(success_count(summary["success_strict"], n), n)))
     units = {"x": ("|x err|", "mm"), "theta": ("|theta err|", "deg")}
     for t in targets:

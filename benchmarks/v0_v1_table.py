@@ -1,4 +1,5 @@
-"""Every shipped model and scripted baseline on its ``-v0`` id and on the corresponding ``-v1`` id.
+"""Every shipped ``-v0`` model and scripted baseline on its ``-v0`` id and on the corresponding
+``-v1`` id (the models shipped for the ``-v1`` ids are scored on their own id, docs/results.md).
 
 ::
 

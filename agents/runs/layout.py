@@ -8,7 +8,8 @@ A run is laid out as RL Zoo lays out its runs (``rl_zoo3.train`` writes the same
         <env_id>.zip                  final model (SB3 zip)
         <env_id>/config.yml           hyper-parameters (the zoo's OrderedDict YAML); ours add a
                                       ``softhand`` entry: env signature, seed, validation
-                                      results, versions and the sha256 of every model file
+                                      results, versions, the sha256 of every model file and
+                                      of each zip's weights (weights_sha256)
         <env_id>/args.yml             command-line arguments (the zoo's; env_kwargs)
         <env_id>/manifest.yml         sha256 of config.yml's loading content (hyper-parameters,
                                       algo, env signature); config.yml records its sha256

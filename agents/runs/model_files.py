@@ -284,6 +284,42 @@ def sha256(path: str | Path) -> str:
     return h.hexdigest()
 
 
+#: Largest ``policy.pth`` read from a zip by :func:`weights_sha256` (bytes).
+MAX_POLICY_BYTES = 200_000_000
+
+
+def weights_sha256(zip_path: str | Path) -> str:
+    """Hex SHA-256 of the network weights in an SB3 zip, independent of the zip's
+    timestamps and compression: the zip's ``policy.pth`` (read with
+    ``torch.load(weights_only=True)``, no code run) as its parameters in sorted name order,
+    each hashed as ``name``, dtype, shape and the little-endian bytes of the tensor.
+    ModelFileError if the zip has no readable ``policy.pth``."""
+    import io
+    import zipfile
+
+    import torch
+
+    try:
+        with zipfile.ZipFile(zip_path) as zf:
+            info = zf.getinfo("policy.pth")
+            if info.file_size > MAX_POLICY_BYTES:
+                raise ModelFileError(f"{zip_path}: policy.pth is larger than "
+                                     f"{MAX_POLICY_BYTES} bytes")
+            data = zf.read(info)
+        state = torch.load(io.BytesIO(data), map_location="cpu", weights_only=True)
+    except (OSError, KeyError, zipfile.BadZipFile, RuntimeError, ValueError) as exc:
+        raise ModelFileError(f"{zip_path}: no readable policy.pth ({exc})"[:300]) from None
+    if not isinstance(state, dict):
+        raise ModelFileError(f"{zip_path}: policy.pth is not a state dict")
+    h = hashlib.sha256()
+    for name in sorted(state):
+        tensor = state[name].detach().cpu().contiguous()
+        array = tensor.numpy()
+        h.update(f"{name}|{array.dtype.str}|{tuple(array.shape)}|".encode())
+        h.update(array.astype(array.dtype.newbyteorder("<"), copy=False).tobytes())
+    return h.hexdigest()
+
+
 def record_sha256(run_dir: Path, files: list[Path]) -> dict[str, str]:
     """``{path relative to run_dir (posix): sha256}`` of ``files``."""
     return {f.relative_to(run_dir).as_posix(): sha256(f) for f in sorted(files)}

@@ -21,7 +21,7 @@ from pathlib import Path
 from typing import Any
 
 from agents.runs.layout import ARGS_FILE, CONFIG_FILE, MANIFEST_FILE, RECORD_KEY
-from agents.runs.model_files import config_digest, record_sha256
+from agents.runs.model_files import config_digest, record_sha256, weights_sha256
 from agents.runs.normalization import save_stats
 from agents.runs.records import RunRecord
 from agents.runs.zoo_dialect import zoo_yaml_dump
@@ -56,7 +56,9 @@ def write_args(run_dir: Path, env_id: str, args: dict[str, Any]) -> None:
 def write_run_config(run_dir: Path, env_id: str, hyperparams: dict[str, Any],
                      record: RunRecord) -> Path:
     """``<env id>/config.yml``: ``hyperparams`` plus ``record`` under ``softhand`` with
-    ``sha256`` of :func:`model_files` (written last, after every model file)."""
+    ``sha256`` of :func:`model_files` (written last, after every model file) and
+    ``weights_sha256`` of each zip (:func:`~agents.runs.model_files.weights_sha256`: the
+    network weights, unchanged by the zip's timestamps)."""
     return _write_config(run_dir, env_id, hyperparams, record.to_yaml())
 
 
@@ -64,9 +66,12 @@ def _write_config(run_dir: Path, env_id: str, hyperparams: dict[str, Any],
                   saved: dict[str, Any], absent: dict[str, str] | None = None) -> Path:
     params = run_dir / env_id
     params.mkdir(parents=True, exist_ok=True)
-    saved = {k: v for k, v in saved.items() if k != "sha256"}
+    saved = {k: v for k, v in saved.items() if k not in ("sha256", "weights_sha256")}
     zoo_yaml_dump({"config_sha256": config_digest(hyperparams, saved)}, params / MANIFEST_FILE)
-    saved["sha256"] = {**(absent or {}), **record_sha256(run_dir, model_files(run_dir, env_id))}
+    files = model_files(run_dir, env_id)
+    saved["sha256"] = {**(absent or {}), **record_sha256(run_dir, files)}
+    saved["weights_sha256"] = {f.relative_to(run_dir).as_posix(): weights_sha256(f)
+                               for f in files if f.suffix == ".zip"}
     path = params / CONFIG_FILE
     zoo_yaml_dump({**hyperparams, RECORD_KEY: saved}, path)
     return path

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import json
 import math
+import re
 import shutil
 
 import pytest
@@ -14,7 +15,7 @@ from agents import evaluate
 from agents.common import metrics
 from agents.common.metrics import strict_success, success_text, wilson_interval
 from agents.play import test_scores
-from agents.play.rollout import summary_yaml
+from agents.play.rollout import summarize_episodes, summary_yaml
 from agents.runs import loading
 from agents.runs.layout import MODELS_DIR, TEST_SCORES_FILE
 from agents.runs.loading import shipped_models
@@ -100,6 +101,28 @@ def test_results_summary_carries_both_intervals():
     assert out["success_strict_ci95"] == list(wilson_interval(5, 10))
 
 
+def test_strict_rate_is_computed_from_the_recorded_final_errors():
+    def ep(success, x_mm, theta_deg):
+        return {"success": success, "errors": {"x_mm": x_mm, "theta_deg": theta_deg},
+                "return": 1.0, "length": 50, "termination_reason": None,
+                "max_friction_ratio": 0.1}
+
+    records = [ep(True, 0.1, 0.1), ep(True, 0.6, 0.1), ep(True, 0.2, 0.9),
+               ep(False, 0.1, 0.1)]
+    for r in records:
+        r["success_strict"] = strict_success(r["success"], r["errors"], ("x", "theta"))
+    summary = summarize_episodes(records, ("x", "theta"))
+    assert summary["success_rate"] == 0.75 and summary["success_strict"] == 0.25
+    pose = evaluate.format_table("t", summary, ("x", "theta"))
+    assert re.search(r"success rate \(1 mm / 1 deg\) +75.0 % \(3/4", pose)
+    assert re.search(r"success rate, strict \(0.5 mm / 0.5 deg\) +25.0 % \(1/4", pose)
+    translate = evaluate.format_table("t", {**summary, "success_strict": 0.5}, ("x",))
+    assert re.search(r"success rate \(1 mm\) +75.0 %", translate)
+    assert re.search(r"strict \(0.5 mm\) +50.0 % \(2/4", translate)
+    assert "deg" not in translate.split("final")[0]
+    assert evaluate.tolerance_text(("theta",), strict=True) == "0.5 deg"
+
+
 def test_what_counts_as_a_test_score():
     assert test_scores.plays_test_goals(10000, 1, None)
     assert test_scores.plays_test_goals(9990, 20, None)  # meets seed 10000
@@ -127,7 +150,7 @@ def test_evaluate_counts_test_scores_of_a_run_and_keeps_its_checksums(tmp_path, 
     common = ["--model", str(run), "--n-episodes", "2", "--no-plots"]
     s1 = evaluate.main([*common, "--out", str(tmp_path / "a")])  # default seed: test goals
     printed = capsys.readouterr().out
-    assert "95 % CI" in printed and "strict (0.5 mm / 0.5 deg)" in printed
+    assert "95 % CI" in printed and "success rate, strict (0.5 mm)" in printed
     assert "scored on them once" in printed
     data = _scores(run)
     assert data["count"] == 1 and len(data["scores"]) == 1

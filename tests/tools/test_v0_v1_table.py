@@ -30,7 +30,9 @@ def table():
 def test_rows_cover_the_shipped_models_and_their_ids(table):
     from agents.runs.layout import MODELS_DIR  # the shipped models' folder
 
-    shipped = {p.name.removesuffix("_1") for p in (MODELS_DIR / "ppo").iterdir() if p.is_dir()}
+    # the models trained on -v0 (the -v1 models are scored on their own id, docs/results.md)
+    shipped = {p.name.removesuffix("_1") for p in (MODELS_DIR / "ppo").iterdir()
+               if p.is_dir() and "-v0" in p.name}
     models = {r.value for r in table.ROWS.values() if r.kind == "model"}
     assert models == shipped
     import gymnasium as gym
