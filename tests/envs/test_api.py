@@ -626,7 +626,7 @@ def test_a_failed_step_is_never_a_success():
 
 
 def test_version_history_lists_every_semantic_change():
-    """The Version History names the semantic changes of the issue's list: slip termination
+    """The Version History names every semantic change of the ids: slip termination
     on by default, ``is_success`` False on a failed step, and v1 with each of its keywords
     (:data:`V1_KWARGS`, :data:`V1_HAND_OVERRIDES`, :data:`V1_RANDOM_KWARGS`)."""
     history = SoftHandEnv.__doc__.split("## Version History", 1)[1]
