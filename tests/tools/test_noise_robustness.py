@@ -4,31 +4,19 @@ validation goals; table, CSV and figure."""
 from __future__ import annotations
 
 import csv
-import importlib.util
-import sys
-from pathlib import Path
 
 import pytest
+
+from tests.tools.conftest import benchmark_script
 
 pytest.importorskip("stable_baselines3")
 pytest.importorskip("matplotlib")
 
-ROOT = Path(__file__).resolve().parents[2]
-
 
 @pytest.fixture(scope="module")
 def tool():
-    spec = importlib.util.spec_from_file_location("noise_robustness",
-                                                  ROOT / "benchmarks" / "noise_robustness.py")
-    assert spec is not None and spec.loader is not None
-    module = importlib.util.module_from_spec(spec)
-    sys.modules[spec.name] = module  # its dataclasses look their module up
-    try:
-        spec.loader.exec_module(module)
+    with benchmark_script("noise_robustness") as module:
         yield module
-    finally:
-        sys.modules.pop(spec.name, None)
-        sys.modules.pop("v0_v1_table", None)
 
 
 def test_points_and_rows(tool):

@@ -2,29 +2,17 @@
 
 from __future__ import annotations
 
-import importlib.util
-import sys
-from pathlib import Path
-
 import pytest
 
-pytest.importorskip("stable_baselines3")
+from tests.tools.conftest import benchmark_script
 
-ROOT = Path(__file__).resolve().parents[2]
+pytest.importorskip("stable_baselines3")
 
 
 @pytest.fixture(scope="module")
 def table():
-    spec = importlib.util.spec_from_file_location("v0_v1_table",
-                                                  ROOT / "benchmarks" / "v0_v1_table.py")
-    assert spec is not None and spec.loader is not None
-    module = importlib.util.module_from_spec(spec)
-    sys.modules[spec.name] = module  # its dataclasses look their module up
-    try:
-        spec.loader.exec_module(module)
+    with benchmark_script("v0_v1_table") as module:
         yield module
-    finally:
-        sys.modules.pop(spec.name, None)
 
 
 def test_rows_cover_the_shipped_models_and_their_ids(table):
