@@ -197,29 +197,21 @@ class GoalTask(Task):
         return np.clip(scaled, -OBS_BOUND, OBS_BOUND)
 
     def evaluate(self, pose, goal, ctrl, failed, grasped):
-        err = 0.0
-        if isinstance(failed, bool) and isinstance(grasped, (bool, np.bool_)) and all(
+        # one environment on Python scalars is scored on Python bools (a NumPy bool combined
+        # with a Python one costs a microsecond a time); the same numbers as a batch's row
+        scalar = isinstance(failed, bool) and isinstance(grasped, (bool, np.bool_)) and all(
             isinstance(pose[t.index], float) and isinstance(g, float)
             for t, g in zip(self.targets, goal, strict=True)
-        ):
-            # one environment on Python scalars: Python bools (a NumPy bool combined with a
-            # Python one costs a microsecond a time); the same numbers as a batch's row
-            success = bool(grasped) and not failed  # a failed step never succeeds
-            for target, g in zip(self.targets, goal, strict=True):
-                d = abs(pose[target.index] - g)
-                err = err + d / target.scale
-                success = success and d <= target.tolerance
-            return (
-                self.goal_weight * np.exp(-err),
-                self.success_weight * success,
-                0.0 - self.ctrl_weight * ctrl,
-                0.0 - self.failure_weight * failed,
-            ), success
-        success = grasped & ~np.asarray(failed, dtype=bool)  # a failed step never succeeds
+        )
+        # a failed step never succeeds
+        success = (bool(grasped) and not failed) if scalar else (
+            grasped & ~np.asarray(failed, dtype=bool))
+        err = 0.0
         for target, g in zip(self.targets, goal, strict=True):
             d = abs(pose[target.index] - g)
             err = err + d / target.scale
-            success = success & (d <= target.tolerance)
+            within = d <= target.tolerance
+            success = (success and within) if scalar else (success & within)
         terms = (
             self.goal_weight * np.exp(-err),
             self.success_weight * success,
