@@ -103,23 +103,15 @@ class ActionMap:
             a = a.astype(np.float64)
         if a.shape != previous.shape:
             raise ValueError(f"action must have shape {previous.shape} (got {a.shape})")
-        u = np.empty_like(previous)
-        ctrl = np.empty(u.size // 2)
-        ok = _map_setpoints(
-            a.reshape(-1),
-            previous.reshape(-1),
-            self._kind,
-            self.max_delta,
-            self._mid,
-            self._half,
-            self.low,
-            self.high,
-            u.reshape(-1),
-            ctrl,
-        )
+        one = previous.ndim == 1
+        a2, prev2 = (a.reshape(1, 2), previous.reshape(1, 2)) if one else (a, previous)
+        u = np.empty(prev2.shape)
+        ctrl = np.empty(prev2.shape[0])
+        ok = _map_setpoints(a2, prev2, self._kind, self.max_delta, self._mid, self._half,
+                            self.low, self.high, u, ctrl)
         if not ok:
             raise ValueError(f"action must be finite (got {a.tolist()})")
-        return u, (float(ctrl[0]) if previous.ndim == 1 else ctrl)
+        return (u[0], float(ctrl[0])) if one else (u, ctrl)
 
 
 def action_array(action: Any, shape: tuple[int, ...]) -> np.ndarray:
@@ -162,21 +154,23 @@ def action_array(action: Any, shape: tuple[int, ...]) -> np.ndarray:
 
 @njit(cache=True)
 def _map_setpoints(a, prev, kind, max_delta, mid, half, low, high, u, ctrl):
-    """Set-points u and control costs ctrl for flattened (2N,) actions; False on NaN/inf.
+    """Set-points u (N, 2) and control costs ctrl (N,) for actions a (N, 2) and the previous
+    set-points prev (N, 2); False on NaN/inf.
 
     ``kind``: 0 = delta, 1 = absolute normalised, 2 = absolute in rad (module doc).
     """
-    for j in range(a.size):
-        if not math.isfinite(a[j]):
-            return False
-    for j in range(a.size):
-        x = float(a[j])
-        if kind != 2:
-            x = min(max(x, -1.0), 1.0)
-            x = prev[j] + x * max_delta if kind == 0 else mid + x * half
-        u[j] = min(max(x, low), high)
-    for s in range(ctrl.size):
-        d0 = (u[2 * s] - prev[2 * s]) / max_delta
-        d1 = (u[2 * s + 1] - prev[2 * s + 1]) / max_delta
+    for s in range(a.shape[0]):
+        for j in range(2):
+            if not math.isfinite(a[s, j]):
+                return False
+    for s in range(a.shape[0]):
+        for j in range(2):
+            x = float(a[s, j])
+            if kind != 2:
+                x = min(max(x, -1.0), 1.0)
+                x = prev[s, j] + x * max_delta if kind == 0 else mid + x * half
+            u[s, j] = min(max(x, low), high)
+        d0 = (u[s, 0] - prev[s, 0]) / max_delta
+        d1 = (u[s, 1] - prev[s, 1]) / max_delta
         ctrl[s] = d0 * d0 + d1 * d1
     return True

@@ -26,7 +26,7 @@ from softhand_env.envs.sensors import SensorState
 from softhand_env.envs.start import start_episode
 from softhand_env.envs.windows import SlipWindows
 from softhand_env.physics import friction, validity
-from softhand_env.physics.hand import HandPhysics
+from softhand_env.physics.hand import HandPhysics, StepStatus
 
 
 def reset_goal(options: Any, allowed: tuple[str, ...]) -> Any:
@@ -130,6 +130,9 @@ class EpisodeBatch:
         self.radius = np.full(n, cfg.params.a)
         self.validated = np.ones((n, 2), dtype=bool)
         self._no_skip = np.zeros(n, dtype=bool)
+        # the outputs of the physics' step and the contact check (overwritten every step)
+        self._status = StepStatus.empty(n)
+        self._bad = np.empty(n, dtype=bool)
         self.contact_impulse = np.zeros((n, 4))
         self.friction_ratio = np.zeros((n, 2))
         self.tension = np.zeros((n, 2), dtype=bool)
@@ -275,7 +278,8 @@ class EpisodeBatch:
             u, ctrl = cfg.actions.setpoints(actions, self._r.setpoint)  # the last commanded
         status: Any
         if self.windows is None:
-            status = self.physics.step(u, cfg.n_substeps, strict=False, skip=skip).hands
+            status = self.physics.step(u, cfg.n_substeps, strict=False, skip=skip,
+                                       out=self._status)
             failed, grasped = status.failed, status.grasped
             contact = self._check_contact(status.impulse, failed, skip)
         else:
@@ -322,15 +326,14 @@ class EpisodeBatch:
         self, impulse: np.ndarray, failed: np.ndarray, skip: np.ndarray | None
     ) -> np.ndarray:
         """Record the step's contact impulses (N, 4), friction ratios and tension; return
-        bool (N,): environments whose contact pulled or needed more friction than their mu,
-        among those not failed otherwise (and not skipped). A diverged step (rolled back) may
-        carry non-finite impulses: they read 0 (its ratio inf), so info holds no NaN."""
-        bad = np.empty(self.num_envs, dtype=bool)
-        friction.check_contact(
-            np.asarray(impulse, dtype=np.float64).reshape(self.num_envs, 4), self.mu, failed,
-            self._no_skip if skip is None else skip, self.contact_impulse, self.friction_ratio,
-            self.tension, bad)
-        return bad
+        bool (N,) (overwritten by the next step): environments whose contact pulled or needed
+        more friction than their mu, among those not failed otherwise (and not skipped). A
+        diverged step (rolled back) may carry non-finite impulses: they read 0 (its ratio
+        inf), so info holds no NaN."""
+        friction.check_contact(impulse, self.mu, failed,
+                               self._no_skip if skip is None else skip, self.contact_impulse,
+                               self.friction_ratio, self.tension, self._bad)
+        return self._bad
 
     def _delay(self, u: np.ndarray) -> np.ndarray:
         """Record the commanded set-points ``u`` (N, 2); return those to apply this step: the

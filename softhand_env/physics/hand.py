@@ -17,6 +17,7 @@ read-out and status field a leading hand axis (``object_pose`` is (N, 3)).
 
 from __future__ import annotations
 
+import math
 from typing import Any, NamedTuple
 
 import numpy as np
@@ -125,6 +126,15 @@ class StepStatus:
         self._reason = reason
         self._batched = batched
 
+    @classmethod
+    def empty(cls, num_hands: int) -> StepStatus:
+        """A status of ``num_hands`` hands with the hand axis and uninitialised arrays (the
+        ``out`` of :meth:`HandPhysics.step`)."""
+        n = int(num_hands)
+        return cls(np.empty(n, dtype=np.int64), np.empty((n, kernel.N_STEP_DIAG)),
+                   np.empty(n, dtype=bool), np.empty(n, dtype=bool),
+                   np.empty(n, dtype=np.int64))
+
     def _hand(self, a: np.ndarray) -> Any:
         return a if self._batched else a[0].item()
 
@@ -200,48 +210,51 @@ class StepStatus:
 
 
 @njit(cache=True)
-def _step_on_this_thread(Y, U, PRM, TIME, n, ch_limit, dn_limit, base_limit):
+def _set_setpoints(SRC, U):
+    """Copy the set-points SRC (N, 2) (rad) into U if every entry is finite; False (U
+    untouched) otherwise."""
+    for s in range(SRC.shape[0]):
+        for j in range(2):
+            if not math.isfinite(SRC[s, j]):
+                return False
+    U[:] = SRC
+    return True
+
+
+@njit(cache=True)
+def _step_on_this_thread(SRC, Y, U, PRM, TIME, n, ros2, H, ch_limit, dn_limit, base_limit,
+                         FLAGS, DIAG, FAILED, GRASPED, REASON):
     """One step of hands none of which is skipped, on the calling thread, in one compiled call
-    (what :meth:`HandPhysics.step` does for one hand): :func:`kernel.advance_batch_serial`,
-    then :func:`_finish_step`. Returns (flags, diag, failed, grasped, reason codes)."""
-    N = Y.shape[0]
+    (what :meth:`HandPhysics.step` does for one hand): :func:`_set_setpoints` from SRC, then
+    the kernel (:func:`kernel.advance_batch_serial`, or with ``ros2``
+    :func:`softhand_env.physics.rosenbrock.advance_batch_serial` at step ``H`` (s)), then
+    :func:`_finish_step`, into the outputs FLAGS, DIAG, FAILED, GRASPED, REASON (the
+    shapes of :class:`StepStatus`). Returns False, with nothing changed, if SRC is not
+    finite."""
+    if not _set_setpoints(SRC, U):
+        return False
     y_prev = Y.copy()
-    flags = np.zeros(N, dtype=np.int64)
-    diag = np.zeros((N, kernel.N_STEP_DIAG))
-    kernel.advance_batch_serial(Y, U, PRM, n, ch_limit, diag, flags)
-    failed, grasped, reason = _finish_step(flags, Y, y_prev, PRM, diag, TIME, ch_limit,
-                                           dn_limit, base_limit)
-    return flags, diag, failed, grasped, reason
+    FLAGS[:] = 0
+    DIAG[:] = 0.0
+    if ros2:
+        rosenbrock.advance_batch_serial(Y, U, PRM, n, H, ch_limit, DIAG, FLAGS)
+    else:
+        kernel.advance_batch_serial(Y, U, PRM, n, ch_limit, DIAG, FLAGS)
+    _finish_step(FLAGS, Y, y_prev, PRM, DIAG, TIME, ch_limit, dn_limit, base_limit, FAILED,
+                 GRASPED, REASON)
+    return True
 
 
 @njit(cache=True)
-def _step_ros2_on_this_thread(Y, U, PRM, TIME, n, H, ch_limit, dn_limit, base_limit):
-    """:func:`_step_on_this_thread` with the ROS2 kernel
-    (:func:`softhand_env.physics.rosenbrock.advance_batch_serial`) at step ``H`` (s)."""
-    N = Y.shape[0]
-    y_prev = Y.copy()
-    flags = np.zeros(N, dtype=np.int64)
-    diag = np.zeros((N, kernel.N_STEP_DIAG))
-    rosenbrock.advance_batch_serial(Y, U, PRM, n, H, ch_limit, diag, flags)
-    failed, grasped, reason = _finish_step(flags, Y, y_prev, PRM, diag, TIME, ch_limit,
-                                           dn_limit, base_limit)
-    return flags, diag, failed, grasped, reason
-
-
-@njit(cache=True)
-def _finish_step(FLAGS, Y, Y_PREV, PRM, DIAG, TIME, ch_limit, dn_limit, base_limit):
+def _finish_step(FLAGS, Y, Y_PREV, PRM, DIAG, TIME, ch_limit, dn_limit, base_limit, FAILED,
+                 GRASPED, REASON):
     """After the kernel: classify the hands (:func:`softhand_env.physics.failure.classify`, with the
-    rollback of non-finite states to ``Y_PREV``) and advance TIME (N,) (s) by the substeps
-    taken (``DIAG[:, 2]``), in one compiled call. Returns (failed, grasped, reason codes)."""
-    N = Y.shape[0]
-    failed = np.empty(N, dtype=np.bool_)
-    grasped = np.empty(N, dtype=np.bool_)
-    reason = np.empty(N, dtype=np.int64)
-    classify(FLAGS, Y, Y_PREV, PRM, DIAG, ch_limit, dn_limit, base_limit, failed, grasped,
-             reason)
-    for s in range(N):
+    rollback of non-finite states to ``Y_PREV``) into FAILED, GRASPED, REASON (N,) and advance
+    TIME (N,) (s) by the substeps taken (``DIAG[:, 2]``), in one compiled call."""
+    classify(FLAGS, Y, Y_PREV, PRM, DIAG, ch_limit, dn_limit, base_limit, FAILED, GRASPED,
+             REASON)
+    for s in range(Y.shape[0]):
         TIME[s] += DIAG[s, 2] * PRM[s, kernel.P_DT]
-    return failed, grasped, reason
 
 
 @njit(cache=True)
@@ -485,6 +498,7 @@ class HandPhysics:
         n_substeps: int,
         strict: bool = True,
         skip: np.ndarray | None = None,
+        out: StepStatus | None = None,
     ) -> StepStatus:
         """Advance every hand ``n_substeps`` substeps of ``dt`` holding the set-points
         ``setpoint`` (RK4 substeps, or that time in ROS2 steps under ``integrator="ros2"``).
@@ -504,6 +518,10 @@ class HandPhysics:
         skip : ndarray of bool, shape (N,), optional
             Hands left untouched this step (e.g. environments that restart instead); their
             status reads flags 0, not failed, not grasped.
+        out : StepStatus, optional
+            A status with the hand axis (:meth:`StepStatus.empty` of N hands) whose arrays
+            receive this step's status (overwritten by every step it is passed to); it is
+            returned. Default: a fresh status in the physics' hand shape.
 
         Raises
         ------
@@ -512,40 +530,46 @@ class HandPhysics:
         PhysicsError
             On divergence with ``strict=True``.
         """
-        u = self._hand_array("setpoint", setpoint, (2,))
+        u = np.asarray(setpoint, dtype=np.float64)
+        if u.shape != self._u.shape:
+            if u.shape != (2,) or self._batched:
+                hand = self._u.shape if self._batched else (2,)
+                raise ValueError(f"setpoint must have shape {hand} (got {np.shape(setpoint)})")
+            u = u.reshape(1, 2)
         n = int(n_substeps)
         if n < 1:
             raise ValueError(f"n_substeps must be >= 1 (got {n_substeps!r})")
-        self._u[:] = u
+        status = StepStatus.empty(self._n) if out is None else out
+        flags, diag = status._flags, status._diag
         ros2 = self._integrator == "ros2"
         if self._n == 1 and (skip is None or not skip[0]):
-            if ros2:
-                flags, diag, failed, grasped, reason = _step_ros2_on_this_thread(
-                    self._y, self._u, self._prm, self._time, n, self._ros2_dt,
-                    self.ch_limit, self.dn_limit, self.base_limit,
-                )
-            else:
-                flags, diag, failed, grasped, reason = _step_on_this_thread(
-                    self._y, self._u, self._prm, self._time, n, self.ch_limit,
-                    self.dn_limit, self.base_limit,
-                )
-        else:
-            y_prev = self._y.copy()
-            flags = np.zeros(self._n, dtype=np.int64)
-            if skip is not None:
-                flags[skip] = kernel.FLAG_SKIP
-            diag = np.zeros((self._n, kernel.N_STEP_DIAG))
-            if ros2:
-                rosenbrock.advance_batch(self._y, self._u, self._prm, n, self._ros2_dt,
-                                         self.ch_limit, diag, flags)
-            else:
-                kernel.advance_batch(self._y, self._u, self._prm, n, self.ch_limit, diag,
-                                     flags)
-            failed, grasped, reason = _finish_step(
-                flags, self._y, y_prev, self._prm, diag, self._time, self.ch_limit,
-                self.dn_limit, self.base_limit,
+            ok = _step_on_this_thread(
+                u, self._y, self._u, self._prm, self._time, n, ros2, self._ros2_dt,
+                self.ch_limit, self.dn_limit, self.base_limit,
+                flags, diag, status._failed, status._grasped, status._reason,
             )
-        status = StepStatus(flags, diag, failed, grasped, reason, self._batched)
+        else:
+            ok = _set_setpoints(u, self._u)
+            if ok:
+                y_prev = self._y.copy()
+                flags[:] = 0
+                if skip is not None:
+                    flags[skip] = kernel.FLAG_SKIP
+                diag[:] = 0.0
+                if ros2:
+                    rosenbrock.advance_batch(self._y, self._u, self._prm, n, self._ros2_dt,
+                                             self.ch_limit, diag, flags)
+                else:
+                    kernel.advance_batch(self._y, self._u, self._prm, n, self.ch_limit, diag,
+                                         flags)
+                _finish_step(flags, self._y, y_prev, self._prm, diag, self._time,
+                             self.ch_limit, self.dn_limit, self.base_limit,
+                             status._failed, status._grasped, status._reason)
+        if not ok:
+            raise ValueError(f"setpoint must be finite (got {np.asarray(setpoint).tolist()})")
+        if out is None and not self._batched:
+            status = StepStatus(flags, diag, status._failed, status._grasped, status._reason,
+                                batched=False)
         if strict and np.any(flags & (kernel.FLAG_NONFINITE | kernel.FLAG_CONSTRAINT)):
             raise PhysicsError(
                 f"simulation diverged at t = {float(self._time.max()):.4f} s: "

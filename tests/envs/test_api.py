@@ -465,18 +465,20 @@ def test_nonfinite_state_rolls_back_and_terminates(monkeypatch):
     env.reset(seed=0)
     before = env.physics.get_state()
 
-    def poisoned(Y, U, PRM, TIME, n, ch_limit, dn_limit, base_limit):
+    def poisoned(SRC, Y, U, PRM, TIME, n, ros2, H, ch_limit, dn_limit, base_limit, FLAGS, DIAG,
+                 FAILED, GRASPED, REASON):
         # the real kernel, then what a blown-up integration leaves behind, then the real
         # rollback and classification
+        U[:] = SRC
         y_prev = Y.copy()
-        flags = np.zeros(len(Y), dtype=np.int64)
-        diag = np.zeros((len(Y), kernel.N_STEP_DIAG))
-        kernel.advance_batch(Y, U, PRM, n, ch_limit, diag, flags)
+        FLAGS[:] = 0
+        kernel.advance_batch(Y, U, PRM, n, ch_limit, DIAG, FLAGS)
         Y[:] = np.nan
-        flags[:] = kernel.FLAG_NONFINITE
-        diag[:, 1] = np.nan
-        return (flags, diag, *hand._finish_step(flags, Y, y_prev, PRM, diag, TIME, ch_limit,
-                                                dn_limit, base_limit))
+        FLAGS[:] = kernel.FLAG_NONFINITE
+        DIAG[:, 1] = np.nan
+        hand._finish_step(FLAGS, Y, y_prev, PRM, DIAG, TIME, ch_limit, dn_limit, base_limit,
+                          FAILED, GRASPED, REASON)
+        return True
 
     monkeypatch.setattr(hand, "_step_on_this_thread", poisoned)
     obs, reward, terminated, _, info = env.step(np.zeros(2, dtype=np.float32))
