@@ -302,7 +302,8 @@ class EpisodeBatch:
         self.success[:] = success
         self.flags[:] = status.flags
         self.constraint_error[:] = status.constraint_error
-        terminated = failed | (self.success & self.task.terminate_on_success)
+        # a fresh array (``failed`` may be the status buffer)
+        terminated = (failed | self.success) if self.task.terminate_on_success else failed.copy()
         self.reason[:] = status.reason
         if cfg.terminate_on_slip and contact.any():
             for k in np.flatnonzero(contact):
@@ -387,8 +388,7 @@ class EpisodeBatch:
         }
         if self.task.goal_dim:
             info["goal"] = self.goal[i].copy()
-        for k, name in enumerate(self.task.terms):
-            info[name] = float(self.terms[k, i])
+        info.update(zip(self.task.terms, self.terms[:, i].tolist()))
         return info
 
     def _refresh_validated(self) -> None:
