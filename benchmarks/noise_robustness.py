@@ -19,7 +19,7 @@ each point of the sensing axis:
   the encoder-differenced velocities) and, with ``rand_sensors``, the torque gains; s = 1 is
   the ``-v1`` id itself.
 
-The shipped models were trained on ``-v0`` (ideal sensing): they are played with
+The ``-v0`` models were trained on ``-v0`` (ideal sensing): they are played with
 ``--allow-off-signature`` (``benchmark: false``; ``env_id`` and, except at ``ideal``,
 ``sensor_model`` differ). The loop plan reads only the goal of the observation, so its row
 is the same at every point (a check of the axis, not a measurement of robustness).
@@ -79,6 +79,8 @@ class Row:
 ROWS: dict[str, Row] = {
     "pose": Row("Pose, teacher-student (v0 model)", "model", "SoftHandPose-v0",
                 "SoftHandPose-v1"),
+    "pose-v1": Row("Pose, teacher-student (v1 model)", "model", "SoftHandPose-v1",
+                   "SoftHandPose-v1"),
     "pose-random": Row("PoseRandom, teacher-student, fingertips (v0 model)", "model",
                        "SoftHandPoseRandom-v0", "SoftHandPoseRandom-v1"),
     "loop-plan": Row("Pose, loop plan (scripted)", "policy", "loop-plan", "SoftHandPose-v1"),
