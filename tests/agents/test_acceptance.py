@@ -19,6 +19,10 @@ below 85 %: the target is met as a point estimate, not at 95 % confidence (docs/
 * Random tier: ReorientRandom >= 95 % and above the model-based baseline; PoseRandom (target
   85 %) >= 85 % on 300 goals and at least 10 points above both the model-based baseline and
   the loop plan.
+* ``-v1`` (300 goals each): the benchmark-v1 targets (Pose 97 %, ReorientRandom 98 %,
+  PoseRandom 95 % with the interval's lower end at 92 %, strict success Pose 90 % and
+  PoseRandom 80 %, no physical failure); those measured below target are strict xfails
+  that name the figure reached.
 """
 
 from __future__ import annotations
@@ -33,7 +37,10 @@ from agents import evaluate
 COMMON = ["--seed", "10000", "--no-plots"]
 
 #: Test goals per shipped model (100 unless named here).
-N_GOALS = {"SoftHandPose-v0": 300, "SoftHandPoseRandom-v0": 300}
+N_GOALS = {"SoftHandPose-v0": 300, "SoftHandPoseRandom-v0": 300,
+           **{f"SoftHand{task}-v1": 300 for task in ("Translate", "Reorient", "Pose",
+                                                    "ReorientRandom", "PoseRandom")},
+           "SoftHandTranslate-v1_finetuned": 300}
 
 #: shipped model name -> (env id, lowest success rate, error keys, baselines it must beat,
 #: margin in success rate over each baseline)
@@ -51,7 +58,54 @@ TARGETS = {
     "SoftHandPoseRandom-v0": ("SoftHandPoseRandom-v0", 0.85,
                               ["median_x_mm", "median_theta_deg"],
                               ["model-based", "loop-plan"], 0.10),
+    # the -v1 models (realistic sensors, physical checks, fast integrator), floors at the
+    # targets of benchmark v1; measured on 300 goals: Translate 300/300, Reorient 300/300,
+    # Pose 292/300, ReorientRandom 296/300, PoseRandom 285/300 (docs/results.md)
+    # Translate-v1's default model (trained from scratch) reaches 100 % like the model-based
+    # baseline but not its median final error (0.177 against 0.117 mm on these goals), so it
+    # is held to the floor only; the model fine-tuned from -v0 beats the baseline (0.074 mm)
+    "SoftHandTranslate-v1": ("SoftHandTranslate-v1", 0.95, ["median_x_mm"], [], 0.0),
+    "SoftHandTranslate-v1_finetuned": ("SoftHandTranslate-v1", 0.95, ["median_x_mm"],
+                                       ["model-based"], 0.0),
+    "SoftHandReorient-v1": ("SoftHandReorient-v1", 0.95, ["median_theta_deg"],
+                            ["model-based"], 0.0),
+    "SoftHandPose-v1": ("SoftHandPose-v1", 0.97, ["median_x_mm", "median_theta_deg"],
+                        ["model-based", "loop-plan"], 0.0),
+    "SoftHandReorientRandom-v1": ("SoftHandReorientRandom-v1", 0.98, ["median_theta_deg"],
+                                  ["model-based"], 0.0),
+    "SoftHandPoseRandom-v1": ("SoftHandPoseRandom-v1", 0.95,
+                              ["median_x_mm", "median_theta_deg"],
+                              ["model-based", "loop-plan"], 0.0),
 }
+
+#: Further targets of the -v1 models on the same 300 goals: (lowest lower end of the Wilson
+#: 95 % interval of success, lowest strict success (0.5 mm / 0.5 deg), or None where none is
+#: set). Every -v1 model must also end no episode in a physical failure.
+TARGETS_V1 = {
+    "SoftHandTranslate-v1": (None, None),
+    "SoftHandReorient-v1": (None, None),
+    "SoftHandPose-v1": (None, 0.90),
+    "SoftHandReorientRandom-v1": (None, None),
+    "SoftHandPoseRandom-v1": (0.92, 0.80),
+}
+
+#: (model, criterion) pairs measured below their target (docs/results.md): they fail until a
+#: model meets the target (strict xfail, so a model that meets it turns them into errors to
+#: be recorded here).
+UNMET_V1 = {
+    ("SoftHandPose-v1", "strict"): "79.0 % (237/300) at 0.5 mm / 0.5 deg, target 90 %",
+    ("SoftHandPoseRandom-v1", "strict"): "48.7 % (146/300) at 0.5 mm / 0.5 deg, target 80 %",
+    ("SoftHandPoseRandom-v1", "interval"): "95.0 % (285/300), interval 91.9-96.9 %, target "
+                                           "lower end 92 %",
+    ("SoftHandPoseRandom-v1", "failures"): "3 over-compressed and 2 slip endings in 300",
+}
+
+
+@functools.cache
+def _learned_v1(name: str, out: str) -> tuple[tuple[str, object], ...]:
+    summary = evaluate.main(["--model", name, "--n-episodes", str(N_GOALS[name]), *COMMON,
+                             "--out", out])
+    return tuple(summary.items())
 
 
 @functools.cache
@@ -82,3 +136,26 @@ def test_shipped_agent_meets_its_target_and_beats_its_baselines(name, tmp_path_f
                 assert learned[key] < baseline[key], (policy, key)
     assert learned["success_rate"] >= floor, learned
 
+
+
+def _v1_cases():
+    for name in TARGETS_V1:
+        for criterion in ("interval", "strict", "failures"):
+            reason = UNMET_V1.get((name, criterion))
+            marks = [pytest.mark.xfail(strict=True, reason=reason)] if reason else []
+            yield pytest.param(name, criterion, marks=marks, id=f"{name}-{criterion}")
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize(("name", "criterion"), list(_v1_cases()))
+def test_v1_agent_meets_its_interval_precision_and_failure_targets(name, criterion,
+                                                                   tmp_path_factory):
+    out = Path(tmp_path_factory.getbasetemp()) / f"learned_{name}"
+    learned = dict(_learned_v1(name, str(out)))
+    low, strict = TARGETS_V1[name]
+    if criterion == "interval":
+        assert low is None or learned["success_ci95"][0] >= low, learned["success_ci95"]
+    elif criterion == "strict":
+        assert strict is None or learned["success_strict"] >= strict, learned["success_strict"]
+    else:
+        assert learned["n_failures"] == 0, learned["n_failures"]
