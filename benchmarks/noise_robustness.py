@@ -83,6 +83,8 @@ ROWS: dict[str, Row] = {
                    "SoftHandPose-v1"),
     "pose-random": Row("PoseRandom, teacher-student, fingertips (v0 model)", "model",
                        "SoftHandPoseRandom-v0", "SoftHandPoseRandom-v1"),
+    "pose-random-v1": Row("PoseRandom, teacher-student, fingertips (v1 model)", "model",
+                          "SoftHandPoseRandom-v1", "SoftHandPoseRandom-v1"),
     "loop-plan": Row("Pose, loop plan (scripted)", "policy", "loop-plan", "SoftHandPose-v1"),
 }
 
