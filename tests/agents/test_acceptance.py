@@ -40,7 +40,7 @@ COMMON = ["--seed", "10000", "--no-plots"]
 N_GOALS = {"SoftHandPose-v0": 300, "SoftHandPoseRandom-v0": 300,
            **{f"SoftHand{task}-v1": 300 for task in ("Translate", "Reorient", "Pose",
                                                     "ReorientRandom", "PoseRandom")},
-           "SoftHandTranslate-v1_finetuned": 300}
+           "SoftHandTranslate-v1_finetuned": 300, "SoftHandPoseRandom-v1_proprio": 300}
 
 #: shipped model name -> (env id, lowest success rate, error keys, baselines it must beat,
 #: margin in success rate over each baseline)
@@ -60,7 +60,8 @@ TARGETS = {
                               ["model-based", "loop-plan"], 0.10),
     # the -v1 models (realistic sensors, physical checks, fast integrator), floors at the
     # targets of benchmark v1; measured on 300 goals: Translate 300/300, Reorient 300/300,
-    # Pose 292/300, ReorientRandom 296/300, PoseRandom 285/300 (docs/results.md)
+    # Pose 292/300, ReorientRandom 296/300, PoseRandom 285/300, PoseRandom without fingertips
+    # 263/300 (docs/results.md)
     # Translate-v1's default model (trained from scratch) reaches 100 % like the model-based
     # baseline but not its median final error (0.177 against 0.117 mm on these goals), so it
     # is held to the floor only; the model fine-tuned from -v0 beats the baseline (0.074 mm)
@@ -76,6 +77,10 @@ TARGETS = {
     "SoftHandPoseRandom-v1": ("SoftHandPoseRandom-v1", 0.95,
                               ["median_x_mm", "median_theta_deg"],
                               ["model-based", "loop-plan"], 0.0),
+    # the student without fingertip sensing (joints and torques only): target 85 %
+    "SoftHandPoseRandom-v1_proprio": ("SoftHandPoseRandom-v1", 0.85,
+                                      ["median_x_mm", "median_theta_deg"],
+                                      ["model-based", "loop-plan"], 0.0),
 }
 
 #: Further targets of the -v1 models on the same 300 goals: (lowest lower end of the Wilson
@@ -87,6 +92,7 @@ TARGETS_V1 = {
     "SoftHandPose-v1": (None, 0.90),
     "SoftHandReorientRandom-v1": (None, None),
     "SoftHandPoseRandom-v1": (0.92, 0.80),
+    "SoftHandPoseRandom-v1_proprio": (None, None),
 }
 
 #: (model, criterion) pairs measured below their target (docs/results.md): they fail until a
@@ -98,6 +104,8 @@ UNMET_V1 = {
     ("SoftHandPoseRandom-v1", "interval"): "95.0 % (285/300), interval 91.9-96.9 %, target "
                                            "lower end 92 %",
     ("SoftHandPoseRandom-v1", "failures"): "3 over-compressed and 2 slip endings in 300",
+    ("SoftHandPoseRandom-v1_proprio", "failures"): "11 over-compressed, 2 slip and 1 tension "
+                                                   "endings in 300",
 }
 
 
