@@ -1,13 +1,16 @@
-"""Compare ``SoftHandPose-v0`` policies: reachable set over a goal grid, and one manoeuvre.
+"""Compare Pose policies: reachable set over a goal grid, and one manoeuvre.
 
 ::
 
     python -m agents.pose_figures --policy loop-plan --model SoftHandPose-v0 --out out/pose
     python -m agents.pose_figures --model logs/ppo/SoftHandPose-v0_3 --out out/pose --grid 21
+    python -m agents.pose_figures --env SoftHandPose-v1 --policy loop-plan \
+        --model SoftHandPose-v1 --out out/pose_v1
 
 Each ``--model`` (a run directory or registered id, as ``agents.evaluate --model`` takes it) or
 ``--policy`` (a scripted goal policy) is one policy, in the order given; each is played
-deterministically in its own env (:func:`agents.play.choice.build`: the run's ``gym.make`` keywords
+deterministically on ``--env`` (a Pose id, default ``SoftHandPose-v0``; a model must have
+been trained on it) in its own env (:func:`agents.play.choice.build`: the run's ``gym.make`` keywords
 and wrappers, the benchmark's 1 mm / 1 deg tolerance), with the goal range widened to
 ``--span-mm`` / ``--span-deg`` so that goals outside the task's +-10 mm / +-10 deg can be set.
 
@@ -65,6 +68,9 @@ from agents.runs.loading import ModelPolicy
 from softhand_env.envs.task_configs import load_task_config
 
 ENV_ID = "SoftHandPose-v0"
+#: Ids of the Pose task the figures can be drawn on (``--env``).
+POSE_IDS = ("SoftHandPose-v0", "SoftHandPose-v1", "SoftHandPoseRandom-v0",
+            "SoftHandPoseRandom-v1")
 #: Scripted policies that play a pose goal (``agents.evaluate --policy``).
 GOAL_POLICIES = ("loop-plan", "model-based")
 #: Files written to ``--out``.
@@ -90,6 +96,8 @@ def parse_args(argv: Sequence[str] | None = None) -> argparse.Namespace:
                    "repeatable")
     p.add_argument("--policy", dest="policies", action=_AddPolicy, const="policy",
                    choices=GOAL_POLICIES, help="scripted policy; repeatable")
+    p.add_argument("--env", default=ENV_ID, choices=POSE_IDS,
+                   help=f"Pose id the policies play (default {ENV_ID})")
     p.add_argument("--out", required=True, help="output directory")
     p.add_argument("--force", action="store_true", help="overwrite earlier figures in --out")
     p.add_argument("--grid", type=int, default=31,
@@ -140,10 +148,12 @@ class Contender:
         return float(self.env.unwrapped.dt)
 
 
-def contender_choice(kind: str, value: str, trust_model: bool = False) -> PolicyChoice:
-    """The :class:`~agents.play.choice.PolicyChoice` of a ``--model``/``--policy`` entry."""
+def contender_choice(kind: str, value: str, trust_model: bool = False,
+                     env_id: str = ENV_ID) -> PolicyChoice:
+    """The :class:`~agents.play.choice.PolicyChoice` of a ``--model``/``--policy`` entry on
+    ``env_id`` (one of :data:`POSE_IDS`)."""
     return PolicyChoice(model=value if kind == "model" else None,
-                        policy=value if kind == "policy" else None, env=ENV_ID,
+                        policy=value if kind == "policy" else None, env=env_id,
                         grasp_deg=6.0, device="cpu", trust_model=trust_model)
 
 
@@ -153,10 +163,11 @@ def span_kwargs(span_mm: float, span_deg: float) -> dict[str, float]:
 
 
 def make_contender(kind: str, value: str, span_mm: float, span_deg: float,
-                   trust_model: bool = False) -> Contender:
+                   trust_model: bool = False, env_id: str = ENV_ID) -> Contender:
     """Build a ``--model``/``--policy`` entry through :func:`agents.play.choice.build` (as
     ``agents.evaluate`` does) and its env with :func:`span_kwargs` added."""
-    policy, env_id, kwargs, wrapper, name = build(contender_choice(kind, value, trust_model))
+    policy, env_id, kwargs, wrapper, name = build(contender_choice(kind, value, trust_model,
+                                                                    env_id))
     env = make_env(env_id, {**kwargs, **span_kwargs(span_mm, span_deg)}, wrapper)
     if isinstance(policy, ModelPolicy):
         policy.check_env(env)
@@ -292,8 +303,8 @@ def main(argv: Sequence[str] | None = None) -> dict[str, Any]:
         import torch
 
         torch.set_num_threads(1)
-    contenders = [make_contender(kind, value, args.span_mm, args.span_deg, args.trust_model)
-                  for kind, value in args.policies]
+    contenders = [make_contender(kind, value, args.span_mm, args.span_deg, args.trust_model,
+                                 args.env) for kind, value in args.policies]
     task = load_task_config("pose")
     box_mm, box_deg = float(task["goal_x_range_mm"]), float(task["goal_theta_range_deg"])
     goal_x_mm, goal_theta_deg = goal_grid(args.grid, args.span_mm, args.span_deg)
@@ -305,7 +316,7 @@ def main(argv: Sequence[str] | None = None) -> dict[str, Any]:
             results.append(run_grid(c, goal_x_mm, goal_theta_deg, args.goal_seed))
         else:
             results.append(run_grid_sharded(
-                contender_choice(kind, value, args.trust_model),
+                contender_choice(kind, value, args.trust_model, args.env),
                 span_kwargs(args.span_mm, args.span_deg), goal_x_mm, goal_theta_deg,
                 args.goal_seed, args.sharding))
         seconds.append(time.perf_counter() - t0)
@@ -324,12 +335,12 @@ def main(argv: Sequence[str] | None = None) -> dict[str, Any]:
     outcome = np.stack([r["outcome"] for r in results])
     labels = [c.label for c in contenders]
     plot_reachable(out / "reachable.png", labels, outcome, goal_x_mm, goal_theta_deg, box_mm,
-                   box_deg, f"{ENV_ID}: outcome of one episode per goal\n({args.grid} x "
+                   box_deg, f"{args.env}: outcome of one episode per goal\n({args.grid} x "
                    f"{args.grid} grid, seeds {args.goal_seed}..{args.goal_seed + args.grid**2 - 1}"
                    f"; success: 1 mm / 1 deg at the end)",
                    marked_goal=(args.goal_x_mm, args.goal_theta_deg))
     plot_manoeuvre(out / "manoeuvre.png", manoeuvres,
-                   f"{ENV_ID}: goal x* = {args.goal_x_mm:g} mm, theta* = "
+                   f"{args.env}: goal x* = {args.goal_x_mm:g} mm, theta* = "
                    f"{args.goal_theta_deg:g} deg (seed {args.goal_seed})")
     print(f"wrote {out}/" + ", ".join(OUTPUTS))
     return {"labels": labels, "outcome": outcome, "seconds": seconds}

@@ -106,3 +106,15 @@ def test_signed_area_of_a_loop_and_of_a_back_and_forth():
     assert signed_area(square[::-1, 0], square[::-1, 1]) == pytest.approx(-2.0)
     line = np.array([0.0, 3.0, 0.0, 3.0])
     assert signed_area(line, 0.5 * line) == pytest.approx(0.0)
+
+
+def test_env_picks_the_pose_id_and_a_model_of_another_id_is_refused(tmp_path):
+    out = tmp_path / "v1"
+    result = pose_figures.main(["--env", "SoftHandPose-v1", "--model", "SoftHandPose-v1",
+                                "--grid", "2", "--out", str(out)])
+    assert result["outcome"].shape == (1, 2, 2)
+    with np.load(out / "reachable.npz") as z:
+        assert list(z["labels"]) == ["ppo SoftHandPose-v1_1"]
+    with pytest.raises(UserError, match="trained on SoftHandPose-v0, not SoftHandPose-v1"):
+        pose_figures.main(["--env", "SoftHandPose-v1", "--model", "SoftHandPose-v0",
+                           "--out", str(tmp_path / "v0")])
