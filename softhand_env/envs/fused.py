@@ -38,13 +38,13 @@ from softhand_env.physics.model import DN_1, DT_1, NQ, TH_1, X_OBJ
 
 
 @njit(cache=True)
-def control_step(A, PREV, kind, max_delta, mid, half, low, high, CMD, CTRL,
-                 Y, U, PRM, TIME, n, ros2, H, ch_limit, dn_limit, base_limit,
+def control_step(A, PREV, READ, ros2, H, kind, max_delta, mid, half, low, high, CMD, CTRL,
+                 Y, U, PRM, TIME, n, ch_limit, dn_limit, base_limit,
                  FLAGS, DIAG, FAILED, GRASPED, REASON, MU, NO_SKIP,
                  window, stop, LEFT, WIN_IMPULSE, ACTIVE, DONE, SUB,
                  OUT_FLAGS, OUT_ERROR, OUT_FAILED, OUT_GRASPED, OUT_REASON,
                  IMPULSE, RATIO, TENSION, CONTACT,
-                 READ, RADIUS, VALIDATED, observe, tactile, OBS, frame, history):
+                 RADIUS, VALIDATED, observe, tactile, OBS, frame, history):
     """One control step of one hand (arrays with a leading axis of 1), in place.
 
     Action map: actions A (1, 2), previous set-points PREV (1, 2) (rad), the map's constants

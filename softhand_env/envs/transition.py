@@ -169,9 +169,9 @@ class EpisodeBatch:
         self._active = np.zeros(n, dtype=bool)
         self._done = np.zeros(n, dtype=np.int64)
         self._substeps = np.zeros(n, dtype=np.int64)
-        win = self.windows if self.windows is not None else SlipWindows(n, 1)
-        self._window_arrays = (0 if self.windows is None else win.window, win.left,
-                               win.impulse)
+        self._fused_args: tuple[Any, ...] = ()
+        if self._fused:
+            self._fused_args = self._fused_arguments()
 
     def _refresh_goal_columns(self) -> None:
         """Goal coordinates as the task reads them: floats for one episode (the task's scalar
@@ -241,7 +241,7 @@ class EpisodeBatch:
         if self.num_envs == 1:
             return self.task.evaluate(
                 tuple(pose[0].tolist()), self._goal_cols, float(ctrl[0]), bool(failed[0]),
-                bool(grasped[0]),
+                bool(grasped[0]), scalar=True,
             )
         return self.task.evaluate(tuple(pose.T), self._goal_cols, ctrl, failed, grasped)
 
@@ -365,29 +365,34 @@ class EpisodeBatch:
         self.reason[:] = status.reason
         return failed, grasped, contact, ctrl
 
+    def _fused_arguments(self) -> tuple[Any, ...]:
+        """The arguments of :func:`~softhand_env.envs.fused.control_step` after the first
+        three (action, previous set-points, read-out block) and the integrator pair: the
+        configuration's constants and the arrays updated in place (built once)."""
+        cfg, p, st, layout = self.cfg, self.physics, self._status, self.cfg.layout
+        acts = cfg.actions
+        win = self.windows if self.windows is not None else SlipWindows(1, 1)
+        return (
+            acts._kind, acts.max_delta, acts._mid, acts._half, acts.low, acts.high,
+            self._cmd, self._ctrl, *p.step_arrays(), cfg.n_substeps,
+            p.ch_limit, p.dn_limit, p.base_limit,
+            st._flags, st._diag, st._failed, st._grasped, st._reason, self.mu, self._no_skip,
+            0 if self.windows is None else win.window, cfg.terminate_on_slip, win.left,
+            win.impulse, self._active, self._done, self._substeps,
+            self.flags, self.constraint_error, self._failed, self.grasped, self._reason_code,
+            self.contact_impulse, self.friction_ratio, self.tension, self._bad,
+            self.radius, self.validated, self.sensing is None, layout.tactile, self.obs,
+            layout.frame_size, layout.history_size,
+        )
+
     def _step_fused(self, actions: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, Any]:
         """:meth:`_step_batched` of one episode without set-point latency in one compiled call
         (:func:`~softhand_env.envs.fused.control_step`; with ideal sensors also the newest
         observation frame)."""
-        cfg, p, st = self.cfg, self.physics, self._status
-        acts = cfg.actions
-        y, u, prm, time = p.step_arrays()
-        window, left, win_impulse = self._window_arrays
+        p = self.physics
         read = np.empty((1, READ_SIZE))
-        layout = cfg.layout
-        ok = control_step(
-            actions, self._r.setpoint, acts._kind, acts.max_delta, acts._mid, acts._half,
-            acts.low, acts.high, self._cmd, self._ctrl,
-            y, u, prm, time, cfg.n_substeps, p.integrator == "ros2", p._ros2_dt,
-            p.ch_limit, p.dn_limit, p.base_limit,
-            st._flags, st._diag, st._failed, st._grasped, st._reason, self.mu, self._no_skip,
-            window, cfg.terminate_on_slip, left, win_impulse, self._active, self._done,
-            self._substeps,
-            self.flags, self.constraint_error, self._failed, self.grasped, self._reason_code,
-            self.contact_impulse, self.friction_ratio, self.tension, self._bad,
-            read, self.radius, self.validated, self.sensing is None, layout.tactile, self.obs,
-            layout.frame_size, layout.history_size,
-        )
+        ok = control_step(actions, self._r.setpoint, read, p.integrator == "ros2",
+                          p._ros2_dt, *self._fused_args)
         if not ok:
             raise ValueError(f"action must be finite (got {actions.tolist()})")
         self._r = HandReadouts.of_block(read)
