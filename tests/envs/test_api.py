@@ -481,6 +481,9 @@ def test_nonfinite_state_rolls_back_and_terminates(monkeypatch):
         return True
 
     monkeypatch.setattr(hand, "_step_on_this_thread", poisoned)
+    # the Python-dispatched pieces, where the kernel can be replaced (the one compiled call of
+    # a single episode, envs/fused.py, binds the same _finish_step at compile time)
+    monkeypatch.setattr(env._batch, "_fused", False)
     obs, reward, terminated, _, info = env.step(np.zeros(2, dtype=np.float32))
     assert terminated and info["termination_reason"] == "nonfinite_state"
     assert np.isfinite(obs).all() and np.isfinite(reward)
