@@ -120,7 +120,8 @@ class Task:
         return at_goal["x"], at_goal["theta"]
 
     def evaluate(
-        self, pose: Any, goal: tuple[Any, ...], ctrl: Any, failed: Any, grasped: Any
+        self, pose: Any, goal: tuple[Any, ...], ctrl: Any, failed: Any, grasped: Any,
+        scalar: bool | None = None,
     ) -> tuple[tuple[Any, ...], Any]:
         """Reward terms (ordered as :attr:`terms`) and success for object pose(s) ``pose``.
 
@@ -138,6 +139,9 @@ class Task:
             slip and tension included when they terminate. Success requires ``grasped`` and
             not ``failed``: a step that over-compresses or slips never counts as success, even
             with the object on the goal.
+        scalar : bool, optional
+            The arguments are Python scalars (one environment: ``failed`` a bool, the
+            coordinates floats); None (default) tells from their types.
         """
         return (), False
 
@@ -196,13 +200,14 @@ class GoalTask(Task):
         scaled = np.asarray(goal, dtype=np.float64) / self._obs_scales
         return np.clip(scaled, -OBS_BOUND, OBS_BOUND)
 
-    def evaluate(self, pose, goal, ctrl, failed, grasped):
+    def evaluate(self, pose, goal, ctrl, failed, grasped, scalar=None):
         # one environment on Python scalars is scored on Python bools (a NumPy bool combined
         # with a Python one costs a microsecond a time); the same numbers as a batch's row
-        scalar = isinstance(failed, bool) and isinstance(grasped, (bool, np.bool_)) and all(
-            isinstance(pose[t.index], float) and isinstance(g, float)
-            for t, g in zip(self.targets, goal, strict=True)
-        )
+        if scalar is None:
+            scalar = isinstance(failed, bool) and isinstance(grasped, (bool, np.bool_)) and all(
+                isinstance(pose[t.index], float) and isinstance(g, float)
+                for t, g in zip(self.targets, goal, strict=True)
+            )
         # a failed step never succeeds
         success = (bool(grasped) and not failed) if scalar else (
             grasped & ~np.asarray(failed, dtype=bool))

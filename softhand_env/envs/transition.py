@@ -21,12 +21,23 @@ from typing import Any
 import numpy as np
 
 from softhand_env.envs.config import EnvConfig
+from softhand_env.envs.fused import control_step
 from softhand_env.envs.observation import add_frame_noise, observe_rows
 from softhand_env.envs.sensors import SensorState
 from softhand_env.envs.start import start_episode
 from softhand_env.envs.windows import SlipWindows
 from softhand_env.physics import friction, validity
-from softhand_env.physics.hand import HandPhysics, StepStatus
+from softhand_env.physics.hand import (
+    _REASON_NAMES,
+    READ_SIZE,
+    HandPhysics,
+    HandReadouts,
+    StepStatus,
+)
+
+
+#: Action dtypes the compiled one-episode step takes (others go through the batched pieces).
+_FUSED_DTYPES = (np.dtype(np.float32), np.dtype(np.float64))
 
 
 def reset_goal(options: Any, allowed: tuple[str, ...]) -> Any:
@@ -149,6 +160,18 @@ class EpisodeBatch:
         if not cfg.sensors.ideal:
             self.sensing = SensorState(cfg.sensors, n, cfg.dt, cfg.layout.tactile,
                                        cfg.rand_sensors)
+        # one episode without set-point latency steps in one compiled call (:mod:`.fused`)
+        self._fused = n == 1 and not cfg.setpoint_latency
+        self._cmd = np.empty((n, 2))
+        self._ctrl = np.empty(n)
+        self._failed = np.zeros(n, dtype=bool)
+        self._reason_code = np.zeros(n, dtype=np.int64)
+        self._active = np.zeros(n, dtype=bool)
+        self._done = np.zeros(n, dtype=np.int64)
+        self._substeps = np.zeros(n, dtype=np.int64)
+        self._fused_args: tuple[Any, ...] = ()
+        if self._fused:
+            self._fused_args = self._fused_arguments()
 
     def _refresh_goal_columns(self) -> None:
         """Goal coordinates as the task reads them: floats for one episode (the task's scalar
@@ -218,7 +241,7 @@ class EpisodeBatch:
         if self.num_envs == 1:
             return self.task.evaluate(
                 tuple(pose[0].tolist()), self._goal_cols, float(ctrl[0]), bool(failed[0]),
-                bool(grasped[0]),
+                bool(grasped[0]), scalar=True,
             )
         return self.task.evaluate(tuple(pose.T), self._goal_cols, ctrl, failed, grasped)
 
@@ -271,6 +294,51 @@ class EpisodeBatch:
         terminated : ndarray of bool, shape (N,)
         """
         cfg, n = self.cfg, self.num_envs
+        layout = cfg.layout
+        f, h = layout.frame_size, layout.history_size
+        observed = False
+        if (self._fused and skip is None and isinstance(actions, np.ndarray)
+                and actions.shape == (1, 2) and actions.dtype in _FUSED_DTYPES):
+            failed, grasped, contact, ctrl = self._step_fused(actions)
+            observed = self.sensing is None
+        else:
+            failed, grasped, contact, ctrl = self._step_batched(actions, skip)
+        if cfg.terminate_on_slip:
+            failed = failed | contact
+        r = self._r
+        terms, success = self._evaluate(r.object_pose, ctrl, failed, grasped)
+        if n == 1:
+            self.terms[:, 0] = terms
+        elif terms:
+            self.terms[:] = terms
+        self.success[:] = success
+        # a fresh array (``failed`` may be the status buffer)
+        terminated = (failed | self.success) if self.task.terminate_on_success else failed.copy()
+        if cfg.terminate_on_slip and contact.any():
+            for k in np.flatnonzero(contact):
+                self.reason[k] = "tension" if self.tension[k].any() else "slip"
+        if self.task.terminate_on_success:
+            self.reason[terminated & ~failed] = "success"
+        # observations: shift the history, write the newest frames
+        rows = np.arange(n) if skip is None else np.flatnonzero(~skip)
+        if not observed:
+            if h > f:
+                self.obs[:, f:h] = self.obs[:, : h - f]
+            self._frames(self.obs, rows=rows, rngs=rngs)
+        noise = cfg.randomization.obs_noise
+        if noise > 0:
+            for i in rows:
+                add_frame_noise(self.obs[i, :f], noise, _generator(rngs, i))
+        return self.terms.sum(axis=0), terminated
+
+    def _step_batched(
+        self, actions: np.ndarray, skip: np.ndarray | None
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, Any]:
+        """The physics part of :meth:`step` through the batched pieces: set-points, physics
+        step (or slip windows), contact check, read-outs and validated box. Records the
+        grasp, flags, constraint errors and reasons; returns (failed, grasped, contact,
+        ctrl), the first three bool (N,) (possibly buffers overwritten by the next step)."""
+        cfg = self.cfg
         if cfg.setpoint_latency:
             u, ctrl = cfg.actions.setpoints(actions, self._sent[:, 0])
             u = self._delay(u)
@@ -289,39 +357,47 @@ class EpisodeBatch:
             self.contact_impulse[:] = status.impulse
             self.friction_ratio[:] = status.friction_ratio
             self.tension[:] = status.tension
-        if cfg.terminate_on_slip:
-            failed = failed | contact
-        r = self._r = self.physics.readouts()
+        self._r = self.physics.readouts()
         self._refresh_validated()
-        terms, success = self._evaluate(r.object_pose, ctrl, failed, grasped)
-        if n == 1:
-            self.terms[:, 0] = terms
-        elif terms:
-            self.terms[:] = terms
         self.grasped[:] = grasped
-        self.success[:] = success
         self.flags[:] = status.flags
         self.constraint_error[:] = status.constraint_error
-        # a fresh array (``failed`` may be the status buffer)
-        terminated = (failed | self.success) if self.task.terminate_on_success else failed.copy()
         self.reason[:] = status.reason
-        if cfg.terminate_on_slip and contact.any():
-            for k in np.flatnonzero(contact):
-                self.reason[k] = "tension" if self.tension[k].any() else "slip"
-        if self.task.terminate_on_success:
-            self.reason[terminated & ~failed] = "success"
-        # observations: shift the history, write the newest frames
-        layout = cfg.layout
-        f, h = layout.frame_size, layout.history_size
-        if h > f:
-            self.obs[:, f:h] = self.obs[:, : h - f]
-        rows = np.arange(n) if skip is None else np.flatnonzero(~skip)
-        self._frames(self.obs, rows=rows, rngs=rngs)
-        noise = cfg.randomization.obs_noise
-        if noise > 0:
-            for i in rows:
-                add_frame_noise(self.obs[i, :f], noise, _generator(rngs, i))
-        return self.terms.sum(axis=0), terminated
+        return failed, grasped, contact, ctrl
+
+    def _fused_arguments(self) -> tuple[Any, ...]:
+        """The arguments of :func:`~softhand_env.envs.fused.control_step` after the first
+        three (action, previous set-points, read-out block) and the integrator pair: the
+        configuration's constants and the arrays updated in place (built once)."""
+        cfg, p, st, layout = self.cfg, self.physics, self._status, self.cfg.layout
+        acts = cfg.actions
+        win = self.windows if self.windows is not None else SlipWindows(1, 1)
+        return (
+            acts._kind, acts.max_delta, acts._mid, acts._half, acts.low, acts.high,
+            self._cmd, self._ctrl, *p.step_arrays(), cfg.n_substeps,
+            p.ch_limit, p.dn_limit, p.base_limit,
+            st._flags, st._diag, st._failed, st._grasped, st._reason, self.mu, self._no_skip,
+            0 if self.windows is None else win.window, cfg.terminate_on_slip, win.left,
+            win.impulse, self._active, self._done, self._substeps,
+            self.flags, self.constraint_error, self._failed, self.grasped, self._reason_code,
+            self.contact_impulse, self.friction_ratio, self.tension, self._bad,
+            self.radius, self.validated, self.sensing is None, layout.tactile, self.obs,
+            layout.frame_size, layout.history_size,
+        )
+
+    def _step_fused(self, actions: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, Any]:
+        """:meth:`_step_batched` of one episode without set-point latency in one compiled call
+        (:func:`~softhand_env.envs.fused.control_step`; with ideal sensors also the newest
+        observation frame)."""
+        p = self.physics
+        read = np.empty((1, READ_SIZE))
+        ok = control_step(actions, self._r.setpoint, read, p.integrator == "ros2",
+                          p._ros2_dt, *self._fused_args)
+        if not ok:
+            raise ValueError(f"action must be finite (got {actions.tolist()})")
+        self._r = HandReadouts.of_block(read)
+        self.reason[0] = _REASON_NAMES[self._reason_code[0]]
+        return self._failed, self.grasped, self._bad, self._ctrl
 
     def _check_contact(
         self, impulse: np.ndarray, failed: np.ndarray, skip: np.ndarray | None

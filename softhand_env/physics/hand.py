@@ -298,6 +298,38 @@ class HandReadouts(NamedTuple):
     setpoint: np.ndarray
     joint_torques: np.ndarray
 
+    @classmethod
+    def of_block(cls, read: np.ndarray) -> HandReadouts:
+        """The read-outs as views of a block (N, :data:`READ_SIZE`) filled by
+        :func:`fill_readouts`."""
+        return cls(
+            read[:, X_OBJ : X_OBJ + 3],
+            read[:, NQ + X_OBJ : NQ + X_OBJ + 3],
+            read[:, TH_1 : TH_1 + 2],
+            read[:, NQ + TH_1 : NQ + TH_1 + 2],
+            read[:, DN_1 : DT_1 + 2],
+            read[:, READ_SETPOINT : READ_SETPOINT + 2],
+            read[:, READ_TORQUE : READ_TORQUE + 2],
+        )
+
+
+#: Columns of a read-out block (N, READ_SIZE) (:func:`fill_readouts`): the state [0, NY),
+#: the set-points [READ_SETPOINT, READ_SETPOINT + 2) (rad), the PID torques
+#: [READ_TORQUE, READ_TORQUE + 2) (N m).
+READ_SETPOINT = NY
+READ_TORQUE = NY + 2
+READ_SIZE = NY + 4
+
+
+@njit(cache=True)
+def fill_readouts(Y, U, PRM, READ):
+    """The read-outs of the states Y (N, 20) under the set-points U (N, 2) (parameters PRM)
+    into the block READ (N, :data:`READ_SIZE`) (:meth:`HandReadouts.of_block`)."""
+    for s in range(Y.shape[0]):
+        READ[s, :NY] = Y[s]
+        READ[s, READ_SETPOINT : READ_SETPOINT + 2] = U[s]
+    pid_torques_batch(Y, U, PRM, READ[:, READ_TORQUE : READ_TORQUE + 2])
+
 
 class HandPhysics:
     """States, integration, failure classification and read-outs of N hands (chapter-5 model).
@@ -607,18 +639,15 @@ class HandPhysics:
     def readouts(self) -> HandReadouts:
         """Every named read-out of every hand at once, with the hand axis (N, ...) also for a
         one-hand physics (one copy of the states; what the environments read per step)."""
-        y = self._y.copy()
-        tau = np.empty((self._n, 2))
-        pid_torques_batch(self._y, self._u, self._prm, tau)
-        return HandReadouts(
-            y[:, X_OBJ : X_OBJ + 3],
-            y[:, NQ + X_OBJ : NQ + X_OBJ + 3],
-            y[:, TH_1 : TH_1 + 2],
-            y[:, NQ + TH_1 : NQ + TH_1 + 2],
-            y[:, DN_1 : DT_1 + 2],
-            self._u.copy(),
-            tau,
-        )
+        read = np.empty((self._n, READ_SIZE))
+        fill_readouts(self._y, self._u, self._prm, read)
+        return HandReadouts.of_block(read)
+
+    def step_arrays(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """The arrays a compiled step works on in place (:func:`_step_on_this_thread`): the
+        states (N, 20), set-points (N, 2) (rad), packed parameters (N, N_PARAMS) and times
+        (N,) (s)."""
+        return self._y, self._u, self._prm, self._time
 
     @property
     def constraint_error(self) -> np.ndarray:
@@ -668,6 +697,7 @@ __all__ = [
     "HandPhysics",
     "HandReadouts",
     "PhysicsError",
+    "READ_SIZE",
     "StepStatus",
     "check_rk4_stability",
     "describe_flags",

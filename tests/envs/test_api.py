@@ -481,6 +481,9 @@ def test_nonfinite_state_rolls_back_and_terminates(monkeypatch):
         return True
 
     monkeypatch.setattr(hand, "_step_on_this_thread", poisoned)
+    # the Python-dispatched pieces, where the kernel can be replaced (the one compiled call of
+    # a single episode, envs/fused.py, binds the same _finish_step at compile time)
+    monkeypatch.setattr(env._batch, "_fused", False)
     obs, reward, terminated, _, info = env.step(np.zeros(2, dtype=np.float32))
     assert terminated and info["termination_reason"] == "nonfinite_state"
     assert np.isfinite(obs).all() and np.isfinite(reward)
@@ -488,6 +491,24 @@ def test_nonfinite_state_rolls_back_and_terminates(monkeypatch):
         if isinstance(value, (float, np.ndarray)):
             assert not np.isnan(value).any(), key
     np.testing.assert_array_equal(env.physics.get_state(), before)
+
+
+@pytest.mark.parametrize("fused", [True, False])
+def test_an_integration_that_overflows_rolls_back_and_terminates(fused, monkeypatch):
+    """A real blow-up, not a replaced kernel: momenta of 1e200 overflow within the first
+    substep; the one compiled call of a single episode and the Python-dispatched pieces both
+    roll the state back and end the episode as nonfinite_state with finite outputs."""
+    env = gym.make("SoftHandReorient-v0").unwrapped
+    env.reset(seed=0)
+    assert env._batch._fused  # the single episode's default path
+    monkeypatch.setattr(env._batch, "_fused", fused)
+    state = env.physics.get_state()
+    state[9:18] = 1e200  # momenta p (9) of [q, p, z]
+    env.physics.set_state(state)
+    obs, reward, terminated, _, info = env.step(np.zeros(2, dtype=np.float32))
+    assert terminated and info["termination_reason"] == "nonfinite_state"
+    assert np.isfinite(obs).all() and np.isfinite(reward)
+    np.testing.assert_array_equal(env.physics.get_state(), state)
 
 
 def test_time_limit_truncates():

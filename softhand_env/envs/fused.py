@@ -1,0 +1,117 @@
+"""The control step of one episode in one compiled call.
+
+:meth:`~softhand_env.envs.transition.EpisodeBatch.step` of a single episode (the single
+environment) runs the compiled pieces of a control step in one call of :func:`control_step`
+instead of one Python-dispatched call each (every dispatch costs about a microsecond, about a
+twentieth of a ROS2 control step):
+
+    action -> set-points (:func:`~softhand_env.envs.actions.ActionMap.setpoints`' map)
+           -> physics step (:meth:`~softhand_env.physics.HandPhysics.step` for one hand), or
+              the pieces of the slip windows (:meth:`~softhand_env.envs.windows.SlipWindows.step`
+              for one hand)
+           -> contact check (:func:`~softhand_env.physics.friction.check_contact`)
+           -> read-outs (:func:`~softhand_env.physics.hand.fill_readouts`)
+           -> validated box (:func:`~softhand_env.physics.validity.validated_rows`)
+           -> observation frame (:func:`~softhand_env.envs.observation.observe_rows`, ideal
+              sensors only: a sensor model draws from the generator first)
+
+Each piece is the same compiled function the batched path calls, on the same arrays, so the
+numbers are bit for bit those of the batched path.
+"""
+
+from __future__ import annotations
+
+from numba import njit
+
+from softhand_env.envs.actions import _map_setpoints
+from softhand_env.envs.observation import observe_rows
+from softhand_env.envs.windows import _account
+from softhand_env.physics import friction, validity
+from softhand_env.physics.hand import (
+    READ_SETPOINT,
+    READ_TORQUE,
+    _step_on_this_thread,
+    fill_readouts,
+)
+from softhand_env.physics.kernel import IMPULSE_OFFSET
+from softhand_env.physics.model import DN_1, DT_1, NQ, TH_1, X_OBJ
+
+
+@njit(cache=True)
+def control_step(A, PREV, READ, ros2, H, kind, max_delta, mid, half, low, high, CMD, CTRL,
+                 Y, U, PRM, TIME, n, ch_limit, dn_limit, base_limit,
+                 FLAGS, DIAG, FAILED, GRASPED, REASON, MU, NO_SKIP,
+                 window, stop, LEFT, WIN_IMPULSE, ACTIVE, DONE, SUB,
+                 OUT_FLAGS, OUT_ERROR, OUT_FAILED, OUT_GRASPED, OUT_REASON,
+                 IMPULSE, RATIO, TENSION, CONTACT,
+                 RADIUS, VALIDATED, observe, tactile, OBS, frame, history):
+    """One control step of one hand (arrays with a leading axis of 1), in place.
+
+    Action map: actions A (1, 2), previous set-points PREV (1, 2) (rad), the map's constants
+    (``kind``, ``max_delta``, ``mid``, ``half``, ``low``, ``high``; rad) into the commanded
+    set-points CMD (1, 2) and the control cost CTRL (1,). Physics: the arrays of
+    :meth:`~softhand_env.physics.HandPhysics.step_arrays` (Y, U, PRM, TIME), ``n``
+    substeps, ``ros2`` and its step ``H`` (s), the limits; the status of a physics step into
+    FLAGS, DIAG, FAILED, GRASPED, REASON (:class:`~softhand_env.physics.StepStatus`'
+    arrays). ``window`` > 0: slip windows of that many substeps (``stop``: a bad window ends
+    the step; LEFT, WIN_IMPULSE the :class:`~softhand_env.envs.windows.SlipWindows` state;
+    ACTIVE, DONE, SUB scratch), else the contact check of the step against MU (NO_SKIP all
+    False). The step's outcome: OUT_FLAGS, OUT_ERROR (1, 2), OUT_FAILED, OUT_GRASPED,
+    OUT_REASON (failure code), IMPULSE (1, 4) (N s), RATIO (1, 2), TENSION (1, 2), CONTACT
+    (1,) (slip or tension). Read-outs into READ (1, ``READ_SIZE`` of
+    :mod:`softhand_env.physics.hand`), the validated box (fingertip radius RADIUS (1,)) into
+    VALIDATED (1, 2), and with ``observe`` the newest frame (``frame`` entries) into OBS
+    (1, size) after shifting its ``history`` entries.
+
+    Returns False, with nothing changed, if the action is not finite.
+    """
+    if not _map_setpoints(A, PREV, kind, max_delta, mid, half, low, high, CMD, CTRL):
+        return False
+    if window > 0:
+        OUT_FLAGS[0] = 0
+        OUT_ERROR[0, :] = 0.0
+        OUT_FAILED[0] = False
+        OUT_GRASPED[0] = False
+        OUT_REASON[0] = 0
+        IMPULSE[0, :] = 0.0
+        RATIO[0, :] = 0.0
+        TENSION[0, :] = False
+        CONTACT[0] = False
+        ACTIVE[0] = True
+        DONE[0] = 0
+        while True:  # SlipWindows.step for one hand
+            piece = min(n - DONE[0], LEFT[0])
+            if not (ACTIVE[0] and piece > 0):
+                break
+            _step_on_this_thread(CMD, Y, U, PRM, TIME, piece, ros2, H, ch_limit, dn_limit,
+                                 base_limit, FLAGS, DIAG, FAILED, GRASPED, REASON)
+            OUT_FAILED[0] = FAILED[0]
+            OUT_GRASPED[0] = GRASPED[0]
+            OUT_REASON[0] = REASON[0]
+            SUB[0] = int(DIAG[0, 2])
+            _account(ACTIVE, FLAGS, DIAG[:, :2], DIAG[:, IMPULSE_OFFSET : IMPULSE_OFFSET + 4],
+                     SUB, MU, stop, window, LEFT, WIN_IMPULSE, OUT_FAILED, ACTIVE, DONE,
+                     OUT_FLAGS, OUT_ERROR, IMPULSE, RATIO, TENSION, CONTACT)
+    else:
+        _step_on_this_thread(CMD, Y, U, PRM, TIME, n, ros2, H, ch_limit, dn_limit,
+                             base_limit, FLAGS, DIAG, FAILED, GRASPED, REASON)
+        OUT_FLAGS[0] = FLAGS[0]
+        OUT_ERROR[0, 0] = DIAG[0, 0]
+        OUT_ERROR[0, 1] = DIAG[0, 1]
+        OUT_FAILED[0] = FAILED[0]
+        OUT_GRASPED[0] = GRASPED[0]
+        OUT_REASON[0] = REASON[0]
+        friction.check_contact(DIAG[:, IMPULSE_OFFSET : IMPULSE_OFFSET + 4], MU, FAILED,
+                               NO_SKIP, IMPULSE, RATIO, TENSION, CONTACT)
+    fill_readouts(Y, U, PRM, READ)
+    validity.validated_rows(READ[:, DN_1 : DT_1 + 2], READ[:, TH_1 : TH_1 + 2],
+                            READ[:, X_OBJ : X_OBJ + 3], RADIUS, VALIDATED)
+    if observe:
+        o = OBS[0]
+        for j in range(history - 1, frame - 1, -1):
+            o[j] = o[j - frame]
+        observe_rows(READ[:, TH_1 : TH_1 + 2], READ[:, NQ + TH_1 : NQ + TH_1 + 2],
+                     READ[:, READ_SETPOINT : READ_SETPOINT + 2],
+                     READ[:, READ_TORQUE : READ_TORQUE + 2],
+                     READ[:, DN_1 : DT_1 + 2], tactile, OBS)
+    return True
