@@ -3,17 +3,16 @@
 :meth:`~softhand_env.envs.transition.EpisodeBatch.step` of a single episode (the single
 environment) runs the compiled pieces of a control step in one call of :func:`control_step`
 instead of one Python-dispatched call each (every dispatch costs about a microsecond, about a
-twentieth of a ROS2 control step):
+twentieth of a ROS2 control step)::
 
-    action -> set-points (:func:`~softhand_env.envs.actions.ActionMap.setpoints`' map)
-           -> physics step (:meth:`~softhand_env.physics.HandPhysics.step` for one hand), or
-              the pieces of the slip windows (:meth:`~softhand_env.envs.windows.SlipWindows.step`
-              for one hand)
-           -> contact check (:func:`~softhand_env.physics.friction.check_contact`)
-           -> read-outs (:func:`~softhand_env.physics.hand.fill_readouts`)
-           -> validated box (:func:`~softhand_env.physics.validity.validated_rows`)
-           -> observation frame (:func:`~softhand_env.envs.observation.observe_rows`, ideal
-              sensors only: a sensor model draws from the generator first)
+    action -> set-points          (envs.actions.ActionMap.setpoints' map)
+           -> physics step        (physics.HandPhysics.step for one hand), or the pieces
+                                  of the slip windows (envs.windows.SlipWindows.step)
+           -> contact check       (physics.friction.check_contact)
+           -> read-outs           (physics.hand.fill_readouts)
+           -> validated box       (physics.validity.validated_rows)
+           -> observation frame   (envs.observation.observe_rows; ideal sensors only: a
+                                  sensor model draws from the generator first)
 
 Each piece is the same compiled function the batched path calls, on the same arrays, so the
 numbers are bit for bit those of the batched path.
