@@ -79,6 +79,12 @@ class ActionMap:
             return spaces.Box(-1.0, 1.0, shape=(2,), dtype=np.float32)
         return spaces.Box(self.low, self.high, shape=(2,), dtype=np.float32)
 
+    def map_constants(self) -> tuple[int, float, float, float, float, float]:
+        """The constants of the compiled set-point map (``_map_setpoints``): the mode code
+        (0 delta, 1 absolute normalised, 2 absolute in rad), ``max_delta``, the joint range's
+        middle and half width, ``low`` and ``high`` (rad)."""
+        return self._kind, self.max_delta, self._mid, self._half, self.low, self.high
+
     def setpoints(self, action: np.ndarray, previous: np.ndarray) -> tuple[np.ndarray, Any]:
         """New set-points (rad) and the control cost |u - previous|^2 / max_delta^2.
 

@@ -28,8 +28,8 @@ from softhand_env.envs.start import start_episode
 from softhand_env.envs.windows import SlipWindows
 from softhand_env.physics import friction, validity
 from softhand_env.physics.hand import (
-    _REASON_NAMES,
     READ_SIZE,
+    REASON_NAMES,
     HandPhysics,
     HandReadouts,
     StepStatus,
@@ -369,14 +369,13 @@ class EpisodeBatch:
         """The arguments of :func:`~softhand_env.envs.fused.control_step` after the first
         three (action, previous set-points, read-out block) and the integrator pair: the
         configuration's constants and the arrays updated in place (built once)."""
-        cfg, p, st, layout = self.cfg, self.physics, self._status, self.cfg.layout
-        acts = cfg.actions
+        cfg, p, layout = self.cfg, self.physics, self.cfg.layout
         win = self.windows if self.windows is not None else SlipWindows(1, 1)
         return (
-            acts._kind, acts.max_delta, acts._mid, acts._half, acts.low, acts.high,
+            *cfg.actions.map_constants(),
             self._cmd, self._ctrl, *p.step_arrays(), cfg.n_substeps,
             p.ch_limit, p.dn_limit, p.base_limit,
-            st._flags, st._diag, st._failed, st._grasped, st._reason, self.mu, self._no_skip,
+            *self._status.arrays(), self.mu, self._no_skip,
             0 if self.windows is None else win.window, cfg.terminate_on_slip, win.left,
             win.impulse, self._active, self._done, self._substeps,
             self.flags, self.constraint_error, self._failed, self.grasped, self._reason_code,
@@ -392,11 +391,11 @@ class EpisodeBatch:
         p = self.physics
         read = np.empty((1, READ_SIZE))
         ok = control_step(actions, self._r.setpoint, read, p.integrator == "ros2",
-                          p._ros2_dt, *self._fused_args)
+                          p.ros2_dt, *self._fused_args)
         if not ok:
             raise ValueError(f"action must be finite (got {actions.tolist()})")
         self._r = HandReadouts.of_block(read)
-        self.reason[0] = _REASON_NAMES[self._reason_code[0]]
+        self.reason[0] = REASON_NAMES[self._reason_code[0]]
         return self._failed, self.grasped, self._bad, self._ctrl
 
     def _check_contact(

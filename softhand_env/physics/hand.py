@@ -74,7 +74,8 @@ def describe_flags(flags: int) -> list[str]:
     return [name for bit, name in FLAG_NAMES.items() if flags & bit]
 
 
-_REASON_NAMES = np.array((None, *REASONS), dtype=object)
+#: Failure code (the ``reason`` array of a compiled step) -> name, None for 0 (no failure).
+REASON_NAMES = np.array((None, *REASONS), dtype=object)
 
 
 class StepStatus:
@@ -135,6 +136,11 @@ class StepStatus:
                    np.empty(n, dtype=bool), np.empty(n, dtype=bool),
                    np.empty(n, dtype=np.int64))
 
+    def arrays(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """The buffers a compiled step writes (hand axis): flags (N,), diagnostics
+        (N, ``kernel.N_STEP_DIAG``), failed (N,), grasped (N,), failure code (N,)."""
+        return self._flags, self._diag, self._failed, self._grasped, self._reason
+
     def _hand(self, a: np.ndarray) -> Any:
         return a if self._batched else a[0].item()
 
@@ -188,7 +194,7 @@ class StepStatus:
 
     @property
     def reason(self) -> Any:
-        names = _REASON_NAMES[self._reason]
+        names = REASON_NAMES[self._reason]
         return names if self._batched else names[0]
 
     @property
@@ -428,6 +434,11 @@ class HandPhysics:
     def integrator(self) -> str:
         """Name of the integrator of every hand (``"rk4"`` or ``"ros2"``)."""
         return self._integrator
+
+    @property
+    def ros2_dt(self) -> float:
+        """Step of the ROS2 integrator (s), used when :attr:`integrator` is ``"ros2"``."""
+        return self._ros2_dt
 
     @property
     def dt(self) -> float:
