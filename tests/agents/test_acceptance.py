@@ -29,6 +29,7 @@ from __future__ import annotations
 
 import functools
 from pathlib import Path
+from typing import Any
 
 import pytest
 
@@ -110,17 +111,17 @@ UNMET_V1 = {
 
 
 @functools.cache
-def _learned_v1(name: str, out: str) -> tuple[tuple[str, object], ...]:
-    summary = evaluate.main(["--model", name, "--n-episodes", str(N_GOALS[name]), *COMMON,
-                             "--out", out])
-    return tuple(summary.items())
+def _summary(base: str, *argv: str) -> tuple[tuple[str, object], ...]:
+    """``agents.evaluate`` on the test goals (``argv`` plus :data:`COMMON`), once per
+    ``argv`` in the session (its results under ``base``, a directory named by ``argv``)."""
+    out = Path(base) / "_".join(a.lstrip("-") for a in argv)
+    return tuple(evaluate.main([*argv, *COMMON, "--out", str(out)]).items())
 
 
-@functools.cache
-def _baseline(policy: str, env_id: str, n: int, out: str) -> tuple[tuple[str, float], ...]:
-    summary = evaluate.main(["--policy", policy, "--env", env_id, "--n-episodes", str(n),
-                             *COMMON, "--out", out])
-    return tuple(summary.items())
+def _learned(name: str, base: Path) -> dict[str, object]:
+    """The shipped model ``name`` on its :data:`N_GOALS` test goals."""
+    return dict(_summary(str(base), "--model", name, "--n-episodes",
+                         str(N_GOALS.get(name, 100))))
 
 
 @pytest.mark.slow
@@ -128,12 +129,12 @@ def _baseline(policy: str, env_id: str, n: int, out: str) -> tuple[tuple[str, fl
 def test_shipped_agent_meets_its_target_and_beats_its_baselines(name, tmp_path_factory):
     env_id, floor, keys, baselines, margin = TARGETS[name]
     n = N_GOALS.get(name, 100)
-    learned = evaluate.main(["--model", name, "--n-episodes", str(n), *COMMON,  # shipped
-                             "--out", str(tmp_path_factory.mktemp("learned"))])
+    base = Path(tmp_path_factory.getbasetemp())
+    learned: dict[str, Any] = _learned(name, base)
     assert learned["n_episodes"] == n
     for policy in baselines:
-        out = Path(tmp_path_factory.getbasetemp()) / f"baseline_{policy}_{env_id}_{n}"
-        baseline = dict(_baseline(policy, env_id, n, str(out)))
+        baseline: dict[str, Any] = dict(_summary(str(base), "--policy", policy, "--env",
+                                                 env_id, "--n-episodes", str(n)))
         if baseline["success_rate"] < 1.0:
             assert learned["success_rate"] >= baseline["success_rate"] + margin, (policy,
                                                                                   baseline)
@@ -158,8 +159,7 @@ def _v1_cases():
 @pytest.mark.parametrize(("name", "criterion"), list(_v1_cases()))
 def test_v1_agent_meets_its_interval_precision_and_failure_targets(name, criterion,
                                                                    tmp_path_factory):
-    out = Path(tmp_path_factory.getbasetemp()) / f"learned_{name}"
-    learned = dict(_learned_v1(name, str(out)))
+    learned: dict[str, Any] = _learned(name, Path(tmp_path_factory.getbasetemp()))
     low, strict = TARGETS_V1[name]
     if criterion == "interval":
         assert low is None or learned["success_ci95"][0] >= low, learned["success_ci95"]
