@@ -38,7 +38,7 @@ from __future__ import annotations
 import argparse
 import dataclasses
 import time
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -110,6 +110,10 @@ def make_distill_parser() -> argparse.ArgumentParser:
                    help="teacher-action probability at iteration k: beta_decay**k, in [0, 1]")
     p.add_argument("--epochs", type=int, default=2,
                    help="passes over the aggregated data per iteration, 1 .. 1000")
+    p.add_argument("--updates", type=int, default=0,
+                   help="minibatches per iteration drawn uniformly from the aggregated data "
+                        "(replaces --epochs, so an iteration costs the same however large the "
+                        "data set is), 0 .. 1e6; 0: use --epochs")
     p.add_argument("--batch-size", type=int, default=1024, help="minibatch, 1 .. 1e6")
     p.add_argument("--lr", type=float, default=1e-3, help="Adam step size, (0, 1]")
     p.add_argument("--lr-final", type=float, default=None,
@@ -299,6 +303,23 @@ def step_latencies(infos: Sequence[dict[str, Any]]) -> np.ndarray:
                         "info (a soft-hand environment)") from None
 
 
+def minibatches(n: int, schedule: DaggerSchedule) -> Iterator[Any]:
+    """Index tensors (int64, (batch,) or shorter at an epoch's end) of one iteration's
+    minibatches over a data set of ``n`` samples: ``schedule.epochs`` shuffled passes, or, with
+    ``schedule.updates`` > 0, that many batches drawn uniformly with replacement."""
+    import torch
+
+    b = schedule.batch_size
+    if schedule.updates > 0:
+        for _ in range(schedule.updates):
+            yield torch.randint(n, (min(b, n),))
+        return
+    for _ in range(schedule.epochs):
+        perm = torch.randperm(n)
+        for start in range(0, n, b):
+            yield perm[start:start + b]
+
+
 def lr_at(k: int, iterations: int, lr: float, lr_final: float) -> float:
     """Adam step size at iteration ``k`` of ``iterations``: linear from ``lr`` (k = 0) to
     ``lr_final`` (k = iterations - 1)."""
@@ -390,15 +411,12 @@ def dagger(model: Any, teacher: ModelPolicy, env_id: str, kwargs: dict[str, Any]
             y_all = torch.clamp(torch.as_tensor(np.concatenate(ys)), low, high)
             n = len(x_all)
             loss = torch.zeros(())
-            for _ in range(schedule.epochs):
-                perm = torch.randperm(n)
-                for start in range(0, n, schedule.batch_size):
-                    signals.check()
-                    idx = perm[start:start + schedule.batch_size]
-                    loss = ((student_mean(policy, x_all[idx]) - y_all[idx]) ** 2).mean()
-                    opt.zero_grad()
-                    loss.backward()
-                    opt.step()
+            for idx in minibatches(n, schedule):
+                signals.check()
+                loss = ((student_mean(policy, x_all[idx]) - y_all[idx]) ** 2).mean()
+                opt.zero_grad()
+                loss.backward()
+                opt.step()
             summary = validate(model, eval_venv, targets, validation.eval_seed, signals)
             point = {"iteration": k, "env_steps": steps, "wall_s": round(time.time() - t0, 1),
                      "beta": beta, "loss": float(loss.detach()), "samples": n, **summary}

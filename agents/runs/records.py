@@ -38,7 +38,9 @@ class DaggerSchedule:
     """The DAgger schedule of ``agents.distill`` (``record["dagger"]``): ``iterations``;
     ``rollout_steps`` control steps per env and iteration; teacher-action probability
     ``beta_decay ** k`` at iteration k; ``epochs`` passes over the data set per iteration in
-    minibatches of ``batch_size``; Adam step size linear from ``lr`` to ``lr_final``; at most
+    minibatches of ``batch_size``, or, with ``updates`` > 0, that many minibatches per
+    iteration drawn uniformly from the data set (a fixed cost per iteration however large the
+    data set has grown); Adam step size linear from ``lr`` to ``lr_final``; at most
     ``max_samples`` (blind observation, label) pairs, oldest dropped first;
     ``latency_labels``: label with the teacher's action when the command takes effect
     (:class:`agents.distill.DelayedLabels`). Range-checked on construction (UserError naming
@@ -48,6 +50,7 @@ class DaggerSchedule:
     rollout_steps: int = 50
     beta_decay: float = 0.5
     epochs: int = 2
+    updates: int = 0
     batch_size: int = 1024
     lr: float = 1e-3
     lr_final: float = 1e-3
@@ -60,6 +63,7 @@ class DaggerSchedule:
         check_range("--rollout-steps", self.rollout_steps, 1, 100_000)
         check_range("--beta-decay", self.beta_decay, 0.0, 1.0)
         check_range("--epochs", self.epochs, 1, 1000)
+        check_range("--updates", self.updates, 0, 1_000_000)
         check_range("--batch-size", self.batch_size, 1, 1_000_000)
         check_range("--max-samples", self.max_samples, 1, 100_000_000)
         for flag, value in (("--lr", self.lr), ("--lr-final", self.lr_final)):

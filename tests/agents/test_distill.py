@@ -179,6 +179,29 @@ def test_step_size_goes_linearly_from_lr_to_lr_final():
     assert args.dagger.lr_final == args.dagger.lr  # constant by default
 
 
+def test_minibatches_make_epochs_over_the_data_or_a_fixed_number_of_draws():
+    from agents.runs.records import DaggerSchedule
+
+    torch.manual_seed(0)
+    # epochs: every sample exactly once per pass, the last batch of a pass shorter
+    batches = list(distill.minibatches(10, DaggerSchedule(epochs=3, batch_size=4)))
+    assert [len(b) for b in batches] == [4, 4, 2] * 3
+    counts = torch.bincount(torch.cat(batches), minlength=10)
+    assert counts.tolist() == [3] * 10
+    # updates: that many full batches whatever the data set's size, indices in range
+    for n in (5, 10_000):
+        batches = list(distill.minibatches(n, DaggerSchedule(updates=7, batch_size=64)))
+        assert len(batches) == 7 and all(len(b) == min(64, n) for b in batches)
+        idx = torch.cat(batches)
+        assert int(idx.min()) >= 0 and int(idx.max()) < n
+    big = torch.cat(list(distill.minibatches(1000, DaggerSchedule(updates=200, batch_size=100))))
+    counts = torch.bincount(big, minlength=1000).float()  # uniform: 20 draws each on average
+    assert abs(float(counts.mean()) - 20.0) < 1e-9 and float(counts.std()) < 6.0
+    with pytest.raises(UserError, match="--updates"):
+        distill.parse_args(["--env", ENV_ID, "--teacher", "t", "--updates", "-1"])
+    assert distill.parse_args(["--env", ENV_ID, "--teacher", "t"]).dagger.updates == 0
+
+
 def test_delayed_labels_pair_a_state_with_the_teacher_action_when_its_command_acts():
     labels = distill.DelayedLabels(3)
     latency = np.array([0, 1, 2])  # env i: commands take effect i steps later
