@@ -61,6 +61,7 @@ from agents.runs.writing import write_args, write_run_config
 from agents.sb3.interrupts import DeferredSignals, Interrupted
 from agents.sb3.native_vec_env import make_sb3_vec_env
 from agents.sb3.policies import mean_action as student_mean
+from agents.sb3.threads import fitting_threads
 from agents.sb3.training import (
     TrainSettings,
     build,
@@ -342,7 +343,7 @@ class DaggerResult:
 def dagger(model: Any, teacher: ModelPolicy, env_id: str, kwargs: dict[str, Any], wrapper: Any,
            n_envs: int, seed: int, schedule: DaggerSchedule, validation: EvalSettings,
            teacher_kwargs: dict[str, Any], log: Any = print,
-           stop: DeferredSignals | None = None) -> DaggerResult:
+           stop: DeferredSignals | None = None, fit_threads: int | None = None) -> DaggerResult:
     """Train ``model``'s actor by DAgger (module doc, ``schedule``); the best iteration's
     weights are loaded back into ``model``.
 
@@ -354,9 +355,13 @@ def dagger(model: Any, teacher: ModelPolicy, env_id: str, kwargs: dict[str, Any]
     every env step of the rollouts and the validation and before every minibatch: once it has
     received a signal, the current iteration is abandoned and the best validated iteration
     kept (none validated: ``model`` keeps its current weights, ``best`` is None).
+    ``fit_threads``: torch threads of the fit after each rollout (None: the current count,
+    which the rollouts and validations use; :mod:`agents.sb3.threads`).
     """
     import torch
 
+    if fit_threads is None:
+        fit_threads = torch.get_num_threads()
     rng = np.random.default_rng(seed)
     s_layout = view_layout(kwargs)
     t_layout = view_layout(teacher_kwargs)
@@ -411,12 +416,13 @@ def dagger(model: Any, teacher: ModelPolicy, env_id: str, kwargs: dict[str, Any]
             y_all = torch.clamp(torch.as_tensor(np.concatenate(ys)), low, high)
             n = len(x_all)
             loss = torch.zeros(())
-            for idx in minibatches(n, schedule):
-                signals.check()
-                loss = ((student_mean(policy, x_all[idx]) - y_all[idx]) ** 2).mean()
-                opt.zero_grad()
-                loss.backward()
-                opt.step()
+            with fitting_threads(fit_threads):
+                for idx in minibatches(n, schedule):
+                    signals.check()
+                    loss = ((student_mean(policy, x_all[idx]) - y_all[idx]) ** 2).mean()
+                    opt.zero_grad()
+                    loss.backward()
+                    opt.step()
             summary = validate(model, eval_venv, targets, validation.eval_seed, signals)
             point = {"iteration": k, "env_steps": steps, "wall_s": round(time.time() - t0, 1),
                      "beta": beta, "loss": float(loss.detach()), "samples": n, **summary}
@@ -506,7 +512,8 @@ def main(argv: Sequence[str] | None = None) -> Path:
         t0 = time.time()
         result = dagger(model, teacher, args.env, kwargs, wrapper, config.n_envs, args.seed,
                         schedule, rec.eval, teacher_kwargs,
-                        log=lambda line: print(line, flush=True), stop=stop)
+                        log=lambda line: print(line, flush=True), stop=stop,
+                        fit_threads=rec.fit_threads)
         wall = round(time.time() - t0, 1)
         model.save(run_dir / f"{args.env}.zip")  # the best iteration's weights (dagger())
         save_curve(result.curve, run_dir / "dagger_curve.npz")

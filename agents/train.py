@@ -43,6 +43,7 @@ from agents.runs.normalization import save_stats
 from agents.runs.records import RunConfig, TrainOutcome
 from agents.runs.writing import save_vecnormalize, write_args, write_run_config
 from agents.sb3.interrupts import DeferredSignals, StopOnSignal
+from agents.sb3.threads import PhaseThreads
 from agents.sb3.training import (
     TrainSettings,
     build,
@@ -149,6 +150,8 @@ def train(config: RunConfig, run_dir: Path, model: Any, eval_env: Any,
     )
     callbacks: list[Any] = [] if stop is None else [StopOnSignal(stop)]
     callbacks.append(evaluation)
+    if rec.fit_threads is not None and rec.fit_threads != rec.torch_threads:
+        callbacks.append(PhaseThreads(rec.torch_threads, rec.fit_threads))
     if rec.save_freq > 0:
         callbacks.append(Checkpoints(save_freq=max(rec.save_freq // n_envs, 1),
                                      save_path=str(run_dir), name_prefix="rl_model",

@@ -158,7 +158,8 @@ class RunRecord:
     Set before training: algorithm, env id, seed, hyper-parameter file, the command-line
     overrides (``env_kwargs``, ``hyperparams``, ``n_timesteps``), checkpoint period (env
     steps), validation settings, torch device and threads, vectorisation, package versions,
-    the command and its start time (ISO 8601, UTC); ``trained_agent``: provenance of the model
+    the command and its start time (ISO 8601, UTC); ``fit_threads``: torch threads while the
+    networks are fitted between rollouts (None: ``torch_threads`` throughout); ``trained_agent``: provenance of the model
     the run started from (None: fresh weights); ``env_signature``: the env's signature
     (``softhand_env.envs.signature``), checked when the model is loaded. ``outcome``: set
     when the run ends.
@@ -177,6 +178,7 @@ class RunRecord:
     versions: dict[str, str]
     command: str
     started: str
+    fit_threads: int | None = None
     trained_agent: dict[str, Any] | None = None
     env_signature: dict[str, Any] | None = None
     outcome: TrainOutcome | DistillOutcome | BCOutcome | RLlibOutcome | None = None

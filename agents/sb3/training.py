@@ -83,6 +83,9 @@ def make_parser(prog: str = "python -m agents.train", description: str | None = 
                    help="checkpoint every this many env steps (<= 0: never)")
     p.add_argument("--device", default="cpu", choices=("cpu", "cuda", "auto"))
     p.add_argument("--torch-threads", type=int, default=1, help="torch threads, 1 .. 256")
+    p.add_argument("--fit-threads", type=int, default=None,
+                   help="torch threads while the networks are fitted between rollouts (the "
+                        "physics is idle then), 1 .. 256 (default: --torch-threads)")
     p.add_argument("--no-progress-bar", action="store_true")
     p.add_argument("--verbose", type=int, default=1, choices=(0, 1, 2))
     return p
@@ -114,6 +117,7 @@ class TrainSettings:
     save_freq: int = 250_000
     device: str = "cpu"
     torch_threads: int = 1
+    fit_threads: int | None = None
     no_progress_bar: bool = False
     verbose: int = 1
 
@@ -123,6 +127,8 @@ class TrainSettings:
         check_range("--eval-seed", self.eval_seed, 0, SEED_MAX - 10_000)
         check_range("--eval-episodes", self.eval_episodes, 1, 10_000)
         check_range("--torch-threads", self.torch_threads, 1, 256)
+        if self.fit_threads is not None:
+            check_range("--fit-threads", self.fit_threads, 1, 256)
         if self.stop_success is not None and not 0.0 < self.stop_success <= 1.0:
             raise UserError(f"--stop-success must be in (0, 1] (got {self.stop_success!r})")
         if self.n_timesteps is not None:
@@ -188,6 +194,7 @@ def resolve_config(args: TrainSettings, command: str = "agents.train") -> RunCon
                           stop_success=args.stop_success),
         device=args.device,
         torch_threads=args.torch_threads,
+        fit_threads=args.torch_threads if args.fit_threads is None else args.fit_threads,
         trained_agent=None,  # the start model's provenance (start_from), if any
         vec_env=vec_env,
         versions=versions(),

@@ -83,6 +83,29 @@ def test_student_learns_the_teacher_and_plays_as_a_saved_blind_model(tmp_path, t
     assert np.mean(errs) < 0.2 * np.mean(errs0), (np.mean(errs), np.mean(errs0))
 
 
+def test_fit_threads_apply_to_the_fit_only(tmp_path, teacher, monkeypatch):
+    seen: dict[str, set[int]] = {"fit": set(), "predict": set()}
+    real_mean, real_validate = distill.student_mean, distill.validate
+
+    def spy_mean(policy, x):
+        seen["fit"].add(torch.get_num_threads())
+        return real_mean(policy, x)
+
+    def spy_validate(*args, **kwargs):
+        seen["predict"].add(torch.get_num_threads())
+        return real_validate(*args, **kwargs)
+
+    monkeypatch.setattr(distill, "student_mean", spy_mean)
+    monkeypatch.setattr(distill, "validate", spy_validate)
+    before = torch.get_num_threads()
+    args = _student_args(tmp_path, teacher)
+    args[args.index("--iterations") + 1] = "2"
+    run = distill.main([*args, "--torch-threads", "1", "--fit-threads", "2"])
+    assert seen == {"fit": {2}, "predict": {1}}
+    assert ModelPolicy(run).run.record["fit_threads"] == 2
+    torch.set_num_threads(before)
+
+
 def test_teacher_and_student_must_match(tmp_path, teacher, monkeypatch):
     args = _student_args(tmp_path, teacher)
     with pytest.raises(UserError, match="env_kwargs differ"):

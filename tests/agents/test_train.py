@@ -127,6 +127,35 @@ def test_training_stops_once_validation_success_reaches_the_threshold(tmp_path, 
     assert record["total_timesteps"] == 64 and record["eval"]["stop_success"] == 0.9
 
 
+def test_fit_threads_apply_to_the_update_and_the_rollouts_keep_torch_threads(tmp_path,
+                                                                             monkeypatch):
+    from stable_baselines3 import PPO
+
+    seen: dict[str, set[int]] = {"train": set(), "step": set()}
+    real_train, real_step = PPO.train, train.HeldOutEvalCallback._on_step
+
+    def spy_train(self):
+        seen["train"].add(torch.get_num_threads())
+        return real_train(self)
+
+    def spy_step(self):  # called after every env step of the rollouts
+        seen["step"].add(torch.get_num_threads())
+        return real_step(self)
+
+    monkeypatch.setattr(PPO, "train", spy_train)
+    monkeypatch.setattr(train.HeldOutEvalCallback, "_on_step", spy_step)
+    before = torch.get_num_threads()
+    run = train.main(["--env", "SoftHandReorient-v0", "--n-timesteps", "128", "--eval-freq",
+                      "0", "--save-freq", "0", "--log-folder", str(tmp_path),
+                      "--no-progress-bar", "--verbose", "0", "--torch-threads", "1",
+                      "--fit-threads", "2", *TINY_PPO])
+    assert seen == {"train": {2}, "step": {1}}
+    record = loading.ModelPolicy(run).run.record
+    assert record["torch_threads"] == 1 and record["fit_threads"] == 2
+    assert torch.get_num_threads() == 1  # the rollout count once learn() has returned
+    torch.set_num_threads(before)
+
+
 def test_training_can_start_from_a_saved_model_of_another_env_id(tmp_path):
     native = str(Path(hyperparams.config_path("ppo", None)).with_name("ppo_native.yml"))
     tiny = ["--n-timesteps", "64", "--eval-freq", "0", "--save-freq", "0", "--no-progress-bar",
@@ -195,6 +224,7 @@ def test_goal_seeds_replay_the_same_goals_after_rewind():
         (["--env", "SoftHandTranslate-v0", "--hyperparams", "not_a_ppo_key:1"], "no hyper-param"),
         (["--env", "SoftHandTranslate-v0", "--conf-file", "/nonexistent.yml"], "not found"),
         (["--env", "SoftHandTranslate-v0", "--stop-success", "0"], "--stop-success"),
+        (["--env", "SoftHandTranslate-v0", "--fit-threads", "0"], "--fit-threads"),
     ],
 )
 def test_wrong_inputs_exit_2_with_one_line(tmp_path, capsys, argv, fragment):
