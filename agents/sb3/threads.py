@@ -8,8 +8,9 @@ matrix products that a second thread speeds up. ``agents.train --fit-threads`` a
 ``agents.distill --fit-threads`` switch torch's thread count at those boundaries:
 :class:`PhaseThreads` as an SB3 callback (``on_rollout_start`` / ``on_rollout_end``, between
 which SB3 steps the envs and after which it fits), :func:`fitting_threads` around a fit loop.
-Only the speed changes: the arithmetic of a matrix product can differ in its last bits with
-the thread count, so a run is reproducible for a given pair of thread counts.
+Only the speed is meant to change; since a matrix product's last bits may depend on the
+thread count on some machines or builds, a run is promised to repeat for the same pair of
+counts.
 """
 
 from __future__ import annotations
