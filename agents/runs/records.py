@@ -159,10 +159,10 @@ class RunRecord:
     overrides (``env_kwargs``, ``hyperparams``, ``n_timesteps``), checkpoint period (env
     steps), validation settings, torch device and threads, vectorisation, package versions,
     the command and its start time (ISO 8601, UTC); ``fit_threads``: torch threads while the
-    networks are fitted between rollouts (None: ``torch_threads`` throughout); ``trained_agent``: provenance of the model
-    the run started from (None: fresh weights); ``env_signature``: the env's signature
-    (``softhand_env.envs.signature``), checked when the model is loaded. ``outcome``: set
-    when the run ends.
+    networks are fitted between rollouts (None: ``torch_threads`` throughout);
+    ``trained_agent``: provenance of the model the run started from (None: fresh weights);
+    ``env_signature``: the env's signature (``softhand_env.envs.signature``), checked when the
+    model is loaded. ``outcome``: set when the run ends.
     """
 
     algo: str

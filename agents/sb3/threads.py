@@ -18,14 +18,13 @@ from __future__ import annotations
 import contextlib
 from collections.abc import Iterator
 
+import torch
 from stable_baselines3.common.callbacks import BaseCallback
 
 
 @contextlib.contextmanager
 def fitting_threads(fit: int) -> Iterator[None]:
     """Run the block with ``fit`` torch threads (>= 1), then restore the previous count."""
-    import torch
-
     before = torch.get_num_threads()
     torch.set_num_threads(fit)
     try:
@@ -50,18 +49,12 @@ class PhaseThreads(BaseCallback):
         self.rollout, self.fit = int(rollout), int(fit)
 
     def _on_rollout_start(self) -> None:
-        import torch
-
         torch.set_num_threads(self.rollout)
 
     def _on_rollout_end(self) -> None:
-        import torch
-
         torch.set_num_threads(self.fit)
 
     def _on_training_end(self) -> None:
-        import torch
-
         torch.set_num_threads(self.rollout)
 
     def _on_step(self) -> bool:
