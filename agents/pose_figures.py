@@ -10,8 +10,8 @@
 Each ``--model`` (a run directory or registered id, as ``agents.evaluate --model`` takes it) or
 ``--policy`` (a scripted goal policy) is one policy, in the order given; each is played
 deterministically on ``--env`` (a Pose id, default ``SoftHandPose-v0``; a model must have
-been trained on it) in its own env (:func:`agents.play.choice.build`: the run's ``gym.make`` keywords
-and wrappers, the benchmark's 1 mm / 1 deg tolerance), with the goal range widened to
+been trained on it) in its own env (:func:`agents.play.choice.build`: the run's ``gym.make``
+keywords and wrappers, the benchmark's 1 mm / 1 deg tolerance), with the goal range widened to
 ``--span-mm`` / ``--span-deg`` so that goals outside the task's +-10 mm / +-10 deg can be set.
 
 With ``--ray [ADDRESS]`` (``--ray-workers K``) each policy's grid is split over Ray workers,

@@ -28,6 +28,7 @@ the highest success rate, ties broken by the lower median final error.
 
 from __future__ import annotations
 
+import dataclasses
 import time
 from collections.abc import Sequence
 from pathlib import Path
@@ -42,6 +43,7 @@ from agents.runs.layout import BEST_MODEL
 from agents.runs.normalization import save_stats
 from agents.runs.records import RunConfig, TrainOutcome
 from agents.runs.writing import save_vecnormalize, write_args, write_run_config
+from agents.sb3.finetune import CriticWarmup, FineTune, add_arguments, set_log_std
 from agents.sb3.interrupts import DeferredSignals, StopOnSignal
 from agents.sb3.threads import PhaseThreads
 from agents.sb3.training import (
@@ -55,9 +57,23 @@ from agents.sb3.training import (
 )
 
 
-def parse_args(argv: Sequence[str] | None = None) -> TrainSettings:
+@dataclasses.dataclass
+class TrainCommand(TrainSettings):
+    """The command line of ``agents.train``: the training settings and the fine-tuning ones
+    (:mod:`agents.sb3.finetune`)."""
+
+    finetune: FineTune = dataclasses.field(default_factory=FineTune)
+
+
+def parse_args(argv: Sequence[str] | None = None) -> TrainCommand:
     """Command-line arguments (see ``python -m agents.train --help``), range-checked."""
-    return TrainSettings.from_namespace(make_parser().parse_args(argv))
+    parser = make_parser()
+    add_arguments(parser)
+    ns = parser.parse_args(argv)
+    settings = TrainSettings.from_namespace(ns)
+    finetune = FineTune.from_namespace(ns)
+    finetune.check_algo(settings.algo)
+    return TrainCommand(**dataclasses.asdict(settings), finetune=finetune)
 
 
 class HeldOutEvalCallback(EvalCallback):
@@ -152,6 +168,9 @@ def train(config: RunConfig, run_dir: Path, model: Any, eval_env: Any,
     callbacks.append(evaluation)
     if rec.fit_threads is not None and rec.fit_threads != rec.torch_threads:
         callbacks.append(PhaseThreads(rec.torch_threads, rec.fit_threads))
+    if rec.finetune is not None and rec.finetune["critic_warmup"] > 0:
+        callbacks.append(CriticWarmup(rec.finetune["critic_warmup"],
+                                      rec.finetune["critic_warmup_lr"]))
     if rec.save_freq > 0:
         callbacks.append(Checkpoints(save_freq=max(rec.save_freq // n_envs, 1),
                                      save_path=str(run_dir), name_prefix="rl_model",
@@ -208,6 +227,9 @@ def main(argv: Sequence[str] | None = None) -> Path:
     model, eval_env = build(config, verbose=args.verbose)
     if args.trained_agent is not None:
         start_from(model, args.trained_agent, rec)
+    if args.finetune.log_std is not None:
+        set_log_std(model, args.finetune.log_std)
+    rec.finetune = args.finetune.to_yaml()
     if run_dir.exists():  # created meanwhile by another process
         raise UserError(f"run directory {run_dir} exists (choose another --run-name)")
     stop = DeferredSignals("training")

@@ -161,6 +161,8 @@ class RunRecord:
     the command and its start time (ISO 8601, UTC); ``fit_threads``: torch threads while the
     networks are fitted between rollouts (None: ``torch_threads`` throughout);
     ``trained_agent``: provenance of the model the run started from (None: fresh weights);
+    ``finetune``: the fine-tuning settings of ``agents.train`` (critic warm-up steps and step
+    size, the log std set at the start; :mod:`agents.sb3.finetune`; None: none);
     ``env_signature``: the env's signature (``softhand_env.envs.signature``), checked when the
     model is loaded. ``outcome``: set when the run ends.
     """
@@ -180,6 +182,7 @@ class RunRecord:
     started: str
     fit_threads: int | None = None
     trained_agent: dict[str, Any] | None = None
+    finetune: dict[str, Any] | None = None
     env_signature: dict[str, Any] | None = None
     outcome: TrainOutcome | DistillOutcome | BCOutcome | RLlibOutcome | None = None
 

@@ -35,7 +35,6 @@ from softhand_env.physics.hand import (
     StepStatus,
 )
 
-
 #: Action dtypes the compiled one-episode step takes (others go through the batched pieces).
 _FUSED_DTYPES = (np.dtype(np.float32), np.dtype(np.float64))
 
@@ -463,7 +462,7 @@ class EpisodeBatch:
         }
         if self.task.goal_dim:
             info["goal"] = self.goal[i].copy()
-        info.update(zip(self.task.terms, self.terms[:, i].tolist()))
+        info.update(zip(self.task.terms, self.terms[:, i].tolist(), strict=True))
         return info
 
     def _refresh_validated(self) -> None:

@@ -16,9 +16,10 @@ a small MLP (PyTorch) from the newest frame and from k stacked frames (newest fi
 frame repeats before the episode start, as the env's ``history_len`` does) to the pose, and
 prints a table: RMSE of x and y (mm) and theta (deg) on the held-out frames, and the fraction
 of held-out frames whose x is within 1 mm AND theta within 1 deg (the benchmark's success
-tolerances). The row ``mean`` predicts the training mean pose: the spread the frames have to
-explain. The title line names the sensing the frames were read with: the sensor model
-(``--sensor-model``, default the id's: ``ideal`` on ``-v0``, ``realistic`` on ``-v1``;
+tolerances), and within 0.5 mm AND 0.5 deg (the strict precision tolerances). The row
+``mean`` predicts the training mean pose: the spread the frames have to explain. The title
+line names the sensing the frames were read with: the sensor model (``--sensor-model``,
+default the id's: ``ideal`` on ``-v0``, ``realistic`` on ``-v1``;
 :mod:`softhand_env.envs.sensors`), the observation mode (``--obs-mode``, default the id's
 ``proprio``) and the observation noise (``obs_noise``, scaled units; the ``Random`` ids' preset
 0.01; ``--sensor-model ideal`` on a ``Random`` ``-v1`` id also turns its per-episode sensor
@@ -62,6 +63,9 @@ from softhand_env.envs.sensors import SENSOR_MODELS
 #: Success tolerances of the benchmark: x (m) and theta (rad).
 X_TOL = 1e-3
 THETA_TOL = math.radians(1.0)
+#: Strict precision tolerances (strict success of the evaluations): x (m) and theta (rad).
+X_TOL_STRICT = 0.5e-3
+THETA_TOL_STRICT = math.radians(0.5)
 #: Set-point walk: seconds between targets, largest rate (rad/s), ranges (rad).
 WALK_HOLD_S = 0.2
 WALK_RATE = math.radians(25.0)
@@ -274,6 +278,8 @@ class Row:
     rmse_x_mm, rmse_y_mm, rmse_theta_deg : float
     within : float
         Fraction of held-out frames with |x error| < 1 mm and |theta error| < 1 deg.
+    within_strict : float
+        The same within 0.5 mm and 0.5 deg.
     n_frames : int
         Held-out frames.
     """
@@ -283,6 +289,7 @@ class Row:
     rmse_y_mm: float
     rmse_theta_deg: float
     within: float
+    within_strict: float
     n_frames: int
 
 
@@ -291,8 +298,9 @@ def score(label: str, pred: np.ndarray, true: np.ndarray) -> Row:
     err = pred - true
     rmse = np.sqrt(np.mean(err**2, axis=0))
     ok = (np.abs(err[:, 0]) < X_TOL) & (np.abs(err[:, 2]) < THETA_TOL)
+    strict = (np.abs(err[:, 0]) < X_TOL_STRICT) & (np.abs(err[:, 2]) < THETA_TOL_STRICT)
     return Row(label, 1e3 * rmse[0], 1e3 * rmse[1], math.degrees(rmse[2]), float(ok.mean()),
-               len(true))
+               float(strict.mean()), len(true))
 
 
 def observability(data: Episodes, frames: Sequence[int] = (1, 4), held_out: float = 0.25,
@@ -323,11 +331,13 @@ def observability(data: Episodes, frames: Sequence[int] = (1, 4), held_out: floa
 def format_table(title: str, rows: Sequence[Row]) -> str:
     """Markdown table of :func:`observability`'s rows under a ``title`` line."""
     lines = [title, "",
-             "| input | RMSE x (mm) | RMSE y (mm) | RMSE theta (deg) | within 1 mm and 1 deg |",
-             "|---|---|---|---|---|"]
+             "| input | RMSE x (mm) | RMSE y (mm) | RMSE theta (deg) | within 1 mm and 1 deg "
+             "| within 0.5 mm and 0.5 deg |",
+             "|---|---|---|---|---|---|"]
     for r in rows:
         lines.append(f"| {r.label} | {r.rmse_x_mm:.3f} | {r.rmse_y_mm:.3f} | "
-                     f"{r.rmse_theta_deg:.3f} | {100 * r.within:.1f} % |")
+                     f"{r.rmse_theta_deg:.3f} | {100 * r.within:.1f} % | "
+                     f"{100 * r.within_strict:.1f} % |")
     return "\n".join(lines)
 
 

@@ -225,6 +225,11 @@ def test_goal_seeds_replay_the_same_goals_after_rewind():
         (["--env", "SoftHandTranslate-v0", "--conf-file", "/nonexistent.yml"], "not found"),
         (["--env", "SoftHandTranslate-v0", "--stop-success", "0"], "--stop-success"),
         (["--env", "SoftHandTranslate-v0", "--fit-threads", "0"], "--fit-threads"),
+        (["--env", "SoftHandTranslate-v0", "--critic-warmup", "-1"], "--critic-warmup"),
+        (["--env", "SoftHandTranslate-v0", "--critic-warmup-lr", "0"], "--critic-warmup-lr"),
+        (["--env", "SoftHandTranslate-v0", "--log-std", "nan"], "--log-std"),
+        (["--env", "SoftHandTranslate-v0", "--algo", "sac", "--critic-warmup", "64"],
+         "apply to a2c and ppo"),
     ],
 )
 def test_wrong_inputs_exit_2_with_one_line(tmp_path, capsys, argv, fragment):

@@ -63,10 +63,22 @@ def test_table_units_and_mean_baseline(data):
     assert rows[0].rmse_x_mm == pytest.approx(1e3 * np.sqrt(np.mean(err[:, 0] ** 2)))
     assert rows[0].rmse_theta_deg == pytest.approx(math.degrees(np.sqrt(np.mean(err[:, 2] ** 2))))
     assert all(r.n_frames == len(y_test) for r in rows)
-    assert all(0.0 <= r.within <= 1.0 for r in rows)
+    assert all(0.0 <= r.within_strict <= r.within <= 1.0 for r in rows)
     table = ob.format_table("t", rows)
     assert "RMSE x (mm)" in table and "RMSE theta (deg)" in table
+    assert "within 0.5 mm and 0.5 deg" in table
     assert len(table.splitlines()) == 4 + len(rows)
+
+
+def test_score_counts_both_tolerances():
+    true = np.zeros((4, 3))
+    # errors (x mm, theta deg): inside both boxes, inside 1/1 only (x), inside 1/1 only
+    # (theta), outside both
+    err = np.array([[0.4, 0.0, 0.4], [0.7, 0.0, 0.1], [0.1, 0.0, 0.8], [1.2, 0.0, 0.1]])
+    pred = np.column_stack([1e-3 * err[:, 0], err[:, 1], np.radians(err[:, 2])])
+    row = ob.score("r", pred, true)
+    assert row.within == pytest.approx(3 / 4)
+    assert row.within_strict == pytest.approx(1 / 4)
 
 
 def test_fit_beats_shuffled_labels_and_is_deterministic(data):
