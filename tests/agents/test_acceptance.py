@@ -61,8 +61,8 @@ TARGETS = {
                               ["model-based", "loop-plan"], 0.10),
     # the -v1 models (realistic sensors, physical checks, fast integrator), floors at the
     # targets of benchmark v1; measured on 300 goals: Translate 300/300, Reorient 300/300,
-    # Pose 292/300, ReorientRandom 296/300, PoseRandom 285/300, PoseRandom without fingertips
-    # 263/300 (docs/results.md)
+    # Pose 292/300, ReorientRandom 296/300, PoseRandom 295/300 (strict 241/300, no physical
+    # failure), PoseRandom without fingertips 268/300 (docs/results.md)
     # Translate-v1's default model (trained from scratch) reaches 100 % like the model-based
     # baseline but not its median final error (0.177 against 0.117 mm on these goals), so it
     # is held to the floor only; the model fine-tuned from -v0 beats the baseline (0.074 mm)
@@ -101,12 +101,8 @@ TARGETS_V1 = {
 #: be recorded here).
 UNMET_V1 = {
     ("SoftHandPose-v1", "strict"): "79.0 % (237/300) at 0.5 mm / 0.5 deg, target 90 %",
-    ("SoftHandPoseRandom-v1", "strict"): "48.7 % (146/300) at 0.5 mm / 0.5 deg, target 80 %",
-    ("SoftHandPoseRandom-v1", "interval"): "95.0 % (285/300), interval 91.9-96.9 %, target "
-                                           "lower end 92 %",
-    ("SoftHandPoseRandom-v1", "failures"): "3 over-compressed and 2 slip endings in 300",
-    ("SoftHandPoseRandom-v1_proprio", "failures"): "11 over-compressed, 2 slip and 1 tension "
-                                                   "endings in 300",
+    ("SoftHandPoseRandom-v1_proprio", "failures"): "11 over-compressed and 1 slip endings in "
+                                                   "300",
 }
 
 
