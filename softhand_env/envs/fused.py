@@ -5,7 +5,9 @@ environment) runs the compiled pieces of a control step in one call of :func:`co
 instead of one Python-dispatched call each (every dispatch costs about a microsecond, about a
 twentieth of a ROS2 control step)::
 
-    action -> set-points          (envs.actions.ActionMap.setpoints' map)
+    action -> set-points          (envs.actions.ActionMap.setpoints' map; with set-point
+                                  latency the ones commanded L steps ago, as
+                                  EpisodeBatch._delay)
            -> physics step        (physics.HandPhysics.step for one hand), or the pieces
                                   of the slip windows (envs.windows.SlipWindows.step)
            -> contact check       (physics.friction.check_contact)
@@ -15,12 +17,16 @@ twentieth of a ROS2 control step)::
                                   sensor model draws from the generator first)
 
 Each piece is the same compiled function the batched path calls, on the same arrays, so the
-numbers are bit for bit those of the batched path.
+numbers are bit for bit those of the batched path (``tests/envs/test_one_episode_step.py``).
+The arguments that stay the same over an episode batch's life (constants and the arrays
+written in place) travel in one :class:`Arguments` record (:func:`control_step_packed`):
+dispatching 49 arguments cost about 5 us a step, one record about 1 us.
 """
 
 from __future__ import annotations
 
-from numba import njit
+from numba import njit, types
+from numba.experimental import structref
 
 from softhand_env.envs.actions import _map_setpoints
 from softhand_env.envs.observation import observe_rows
@@ -37,8 +43,22 @@ from softhand_env.physics.model import DN_1, DT_1, NQ, TH_1, X_OBJ
 
 
 @njit(cache=True)
+def _delay(CMD, SENT, LATENCY, APPLIED):
+    """Record the commanded set-points CMD (1, 2) as the newest of SENT (1, K, 2) and write
+    those commanded LATENCY[0] steps ago into APPLIED (1, 2) (CMD itself for 0)."""
+    lag = LATENCY[0]
+    for j in range(2):
+        APPLIED[0, j] = CMD[0, j] if lag == 0 else SENT[0, lag - 1, j]
+    for k in range(SENT.shape[1] - 1, 0, -1):
+        SENT[0, k, 0] = SENT[0, k - 1, 0]
+        SENT[0, k, 1] = SENT[0, k - 1, 1]
+    SENT[0, 0, 0] = CMD[0, 0]
+    SENT[0, 0, 1] = CMD[0, 1]
+
+
+@njit(cache=True)
 def control_step(A, PREV, READ, ros2, H, kind, max_delta, mid, half, low, high, CMD, CTRL,
-                 Y, U, PRM, TIME, n, ch_limit, dn_limit, base_limit,
+                 SENT, LATENCY, APPLIED, Y, U, PRM, TIME, n, ch_limit, dn_limit, base_limit,
                  FLAGS, DIAG, FAILED, GRASPED, REASON, MU, NO_SKIP,
                  window, stop, LEFT, WIN_IMPULSE, ACTIVE, DONE, SUB,
                  OUT_FLAGS, OUT_ERROR, OUT_FAILED, OUT_GRASPED, OUT_REASON,
@@ -48,7 +68,11 @@ def control_step(A, PREV, READ, ros2, H, kind, max_delta, mid, half, low, high, 
 
     Action map: actions A (1, 2), previous set-points PREV (1, 2) (rad), the map's constants
     (``kind``, ``max_delta``, ``mid``, ``half``, ``low``, ``high``; rad) into the commanded
-    set-points CMD (1, 2) and the control cost CTRL (1,). Physics: the arrays of
+    set-points CMD (1, 2) and the control cost CTRL (1,). Set-point latency (SENT (1, K, 2)
+    with K > 0: the set-points commanded in the last K steps, newest first, PREV its first
+    slot; LATENCY (1,) the episode's latency L in steps): the physics gets the set-points
+    commanded L steps ago (APPLIED (1, 2)), as
+    :meth:`~softhand_env.envs.transition.EpisodeBatch.step` applies them. Physics: the arrays of
     :meth:`~softhand_env.physics.HandPhysics.step_arrays` (Y, U, PRM, TIME), ``n``
     substeps, ``ros2`` and its step ``H`` (s), the limits; the status of a physics step into
     FLAGS, DIAG, FAILED, GRASPED, REASON (:class:`~softhand_env.physics.StepStatus`'
@@ -66,6 +90,10 @@ def control_step(A, PREV, READ, ros2, H, kind, max_delta, mid, half, low, high, 
     """
     if not _map_setpoints(A, PREV, kind, max_delta, mid, half, low, high, CMD, CTRL):
         return False
+    SRC = CMD
+    if SENT.shape[1] > 0:
+        _delay(CMD, SENT, LATENCY, APPLIED)
+        SRC = APPLIED
     if window > 0:
         OUT_FLAGS[0] = 0
         OUT_ERROR[0, :] = 0.0
@@ -82,7 +110,7 @@ def control_step(A, PREV, READ, ros2, H, kind, max_delta, mid, half, low, high, 
             piece = min(n - DONE[0], LEFT[0])
             if not (ACTIVE[0] and piece > 0):
                 break
-            _step_on_this_thread(CMD, Y, U, PRM, TIME, piece, ros2, H, ch_limit, dn_limit,
+            _step_on_this_thread(SRC, Y, U, PRM, TIME, piece, ros2, H, ch_limit, dn_limit,
                                  base_limit, FLAGS, DIAG, FAILED, GRASPED, REASON)
             OUT_FAILED[0] = FAILED[0]
             OUT_GRASPED[0] = GRASPED[0]
@@ -92,7 +120,7 @@ def control_step(A, PREV, READ, ros2, H, kind, max_delta, mid, half, low, high, 
                      SUB, MU, stop, window, LEFT, WIN_IMPULSE, OUT_FAILED, ACTIVE, DONE,
                      OUT_FLAGS, OUT_ERROR, IMPULSE, RATIO, TENSION, CONTACT)
     else:
-        _step_on_this_thread(CMD, Y, U, PRM, TIME, n, ros2, H, ch_limit, dn_limit,
+        _step_on_this_thread(SRC, Y, U, PRM, TIME, n, ros2, H, ch_limit, dn_limit,
                              base_limit, FLAGS, DIAG, FAILED, GRASPED, REASON)
         OUT_FLAGS[0] = FLAGS[0]
         OUT_ERROR[0, 0] = DIAG[0, 0]
@@ -114,3 +142,61 @@ def control_step(A, PREV, READ, ros2, H, kind, max_delta, mid, half, low, high, 
                      READ[:, READ_TORQUE : READ_TORQUE + 2],
                      READ[:, DN_1 : DT_1 + 2], tactile, OBS)
     return True
+
+
+@structref.register
+class _ArgumentsType(types.StructRef):
+    def preprocess_fields(self, fields):
+        return tuple((name, types.unliteral(typ)) for name, typ in fields)
+
+
+class Arguments(structref.StructRefProxy):
+    """The arguments of :func:`control_step` after the integrator pair, in one compiled record
+    (:func:`pack_arguments`): the arrays are the caller's (shared, not copied), so that one
+    step passes one object instead of 49 (each dispatched argument costs a fraction of a
+    microsecond). Not picklable: rebuild it from the arguments."""
+
+
+#: The fields of :class:`Arguments`, the parameters of :func:`control_step` after ``H``.
+ARGUMENT_FIELDS = (
+    "kind", "max_delta", "mid", "half", "low", "high", "CMD", "CTRL", "SENT", "LATENCY",
+    "APPLIED", "Y", "U", "PRM", "TIME", "n", "ch_limit", "dn_limit", "base_limit", "FLAGS",
+    "DIAG", "FAILED", "GRASPED", "REASON",
+    "MU", "NO_SKIP", "window", "stop", "LEFT", "WIN_IMPULSE", "ACTIVE", "DONE", "SUB",
+    "OUT_FLAGS", "OUT_ERROR", "OUT_FAILED", "OUT_GRASPED", "OUT_REASON", "IMPULSE", "RATIO",
+    "TENSION", "CONTACT", "RADIUS", "VALIDATED", "observe", "tactile", "OBS", "frame",
+    "history",
+)
+structref.define_proxy(Arguments, _ArgumentsType, list(ARGUMENT_FIELDS))
+
+
+@njit(cache=True)
+def pack_arguments(kind, max_delta, mid, half, low, high, CMD, CTRL, SENT, LATENCY, APPLIED,
+                   Y, U, PRM, TIME, n,
+                   ch_limit, dn_limit, base_limit, FLAGS, DIAG, FAILED, GRASPED, REASON, MU,
+                   NO_SKIP, window, stop, LEFT, WIN_IMPULSE, ACTIVE, DONE, SUB, OUT_FLAGS,
+                   OUT_ERROR, OUT_FAILED, OUT_GRASPED, OUT_REASON, IMPULSE, RATIO, TENSION,
+                   CONTACT, RADIUS, VALIDATED, observe, tactile, OBS, frame, history):
+    """An :class:`Arguments` record of :func:`control_step`'s arguments after ``H`` (the
+    arrays are shared with the caller)."""
+    return Arguments(kind, max_delta, mid, half, low, high, CMD, CTRL, SENT, LATENCY, APPLIED,
+                     Y, U, PRM, TIME, n,
+                     ch_limit, dn_limit, base_limit, FLAGS, DIAG, FAILED, GRASPED, REASON, MU,
+                     NO_SKIP, window, stop, LEFT, WIN_IMPULSE, ACTIVE, DONE, SUB, OUT_FLAGS,
+                     OUT_ERROR, OUT_FAILED, OUT_GRASPED, OUT_REASON, IMPULSE, RATIO, TENSION,
+                     CONTACT, RADIUS, VALIDATED, observe, tactile, OBS, frame, history)
+
+
+@njit(cache=True)
+def control_step_packed(A, PREV, READ, ros2, H, S):
+    """:func:`control_step` with the arguments after ``H`` from the record S
+    (:class:`Arguments`)."""
+    return control_step(A, PREV, READ, ros2, H, S.kind, S.max_delta, S.mid, S.half, S.low,
+                        S.high, S.CMD, S.CTRL, S.SENT, S.LATENCY, S.APPLIED, S.Y, S.U,
+                        S.PRM, S.TIME, S.n, S.ch_limit,
+                        S.dn_limit, S.base_limit, S.FLAGS,
+                        S.DIAG, S.FAILED, S.GRASPED, S.REASON, S.MU, S.NO_SKIP, S.window,
+                        S.stop, S.LEFT, S.WIN_IMPULSE, S.ACTIVE, S.DONE, S.SUB, S.OUT_FLAGS,
+                        S.OUT_ERROR, S.OUT_FAILED, S.OUT_GRASPED, S.OUT_REASON, S.IMPULSE,
+                        S.RATIO, S.TENSION, S.CONTACT, S.RADIUS, S.VALIDATED, S.observe,
+                        S.tactile, S.OBS, S.frame, S.history)

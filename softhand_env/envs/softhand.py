@@ -385,11 +385,11 @@ class SoftHandEnv(gym.Env):
     def step(self, action: np.ndarray) -> tuple[np.ndarray, float, bool, bool, dict[str, Any]]:
         a = action_array(action, (2,))
         batch = self._batch
-        reward, terminated = batch.step(a.reshape(1, 2), (self.np_random,))
+        reward, terminated = batch.step_one(a.reshape(1, 2), self.np_random)
         info = batch.info(0)
         if self.render_mode == "human":
             self.render()
-        return batch.obs[0].copy(), float(reward[0]), bool(terminated[0]), False, info
+        return batch.obs[0].copy(), reward, terminated, False, info
 
     # ---------------------------------------------------------------------------- helpers
     def observation_from_state(self, state: np.ndarray, setpoint: np.ndarray) -> np.ndarray:

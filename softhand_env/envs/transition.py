@@ -21,7 +21,7 @@ from typing import Any
 import numpy as np
 
 from softhand_env.envs.config import EnvConfig
-from softhand_env.envs.fused import control_step
+from softhand_env.envs.fused import control_step_packed, pack_arguments
 from softhand_env.envs.observation import add_frame_noise, observe_rows
 from softhand_env.envs.sensors import SensorState
 from softhand_env.envs.start import start_episode
@@ -37,6 +37,8 @@ from softhand_env.physics.hand import (
 
 #: Action dtypes the compiled one-episode step takes (others go through the batched pieces).
 _FUSED_DTYPES = (np.dtype(np.float32), np.dtype(np.float64))
+#: The rows of one episode.
+_ROW_0 = np.zeros(1, dtype=np.int64)
 
 
 def reset_goal(options: Any, allowed: tuple[str, ...]) -> Any:
@@ -159,8 +161,9 @@ class EpisodeBatch:
         if not cfg.sensors.ideal:
             self.sensing = SensorState(cfg.sensors, n, cfg.dt, cfg.layout.tactile,
                                        cfg.rand_sensors)
-        # one episode without set-point latency steps in one compiled call (:mod:`.fused`)
-        self._fused = n == 1 and not cfg.setpoint_latency
+        # one episode steps in one compiled call (:mod:`.fused`)
+        self._fused = n == 1
+        self._applied = np.empty((n, 2))
         self._cmd = np.empty((n, 2))
         self._ctrl = np.empty(n)
         self._failed = np.zeros(n, dtype=bool)
@@ -169,8 +172,27 @@ class EpisodeBatch:
         self._done = np.zeros(n, dtype=np.int64)
         self._substeps = np.zeros(n, dtype=np.int64)
         self._fused_args: tuple[Any, ...] = ()
+        self._read_block = np.zeros((n, READ_SIZE))
+        self._read_views = HandReadouts.of_block(self._read_block)
+        self._fused_pack: Any = None  # fused.Arguments of _fused_args, built on first use
+        self._rows0 = self._rows(0)  # views, as info reads row 0 every step of a single env
         if self._fused:
             self._fused_args = self._fused_arguments()
+
+    def __getstate__(self) -> dict[str, Any]:
+        state = self.__dict__.copy()
+        state["_fused_pack"] = None  # a compiled record does not pickle; rebuilt on use
+        del state["_read_views"], state["_rows0"]  # views would unpickle as copies
+        if self._r is self._read_views:
+            state["_r"] = None
+        return state
+
+    def __setstate__(self, state: dict[str, Any]) -> None:
+        self.__dict__.update(state)
+        self._read_views = HandReadouts.of_block(self._read_block)
+        self._rows0 = self._rows(0)
+        if self._r is None:
+            self._r = self._read_views
 
     def _refresh_goal_columns(self) -> None:
         """Goal coordinates as the task reads them: floats for one episode (the task's scalar
@@ -330,6 +352,55 @@ class EpisodeBatch:
                 add_frame_noise(self.obs[i, :f], noise, _generator(rngs, i))
         return self.terms.sum(axis=0), terminated
 
+    def step_one(self, actions: np.ndarray, rng: np.random.Generator | None) -> tuple[float, bool]:
+        """:meth:`step` of one episode (N = 1) on Python scalars: the same numbers as row 0 of
+        :meth:`step`, without its array arithmetic (what the single environment runs).
+
+        Parameters
+        ----------
+        actions : ndarray, shape (1, 2)
+        rng : numpy.random.Generator
+            The episode's generator (observation noise, sensor readings).
+
+        Returns
+        -------
+        reward : float
+        terminated : bool
+        """
+        if not (self._fused and isinstance(actions, np.ndarray) and actions.shape == (1, 2)
+                and actions.dtype in _FUSED_DTYPES):
+            reward, term = self.step(actions, (rng,))
+            return float(reward[0]), bool(term[0])
+        cfg, task = self.cfg, self.task
+        failed_a, grasped_a, contact_a, ctrl = self._step_fused(actions)
+        failed = bool(failed_a[0])
+        contact = cfg.terminate_on_slip and bool(contact_a[0])
+        failed = failed or contact
+        terms, success = task.evaluate(
+            tuple(self._r.object_pose[0].tolist()), self._goal_cols, float(ctrl[0]), failed,
+            bool(grasped_a[0]), scalar=True,
+        )
+        self.terms[:, 0] = terms
+        self.success[0] = success
+        terminated = failed or (task.terminate_on_success and success)
+        if contact:
+            self.reason[0] = "tension" if self.tension[0].any() else "slip"
+        elif terminated and not failed:
+            self.reason[0] = "success"
+        layout = cfg.layout
+        f, h = layout.frame_size, layout.history_size
+        if self.sensing is not None:  # the fused call wrote the frame of ideal sensors only
+            if h > f:
+                self.obs[:, f:h] = self.obs[:, : h - f]
+            self._frames(self.obs, rows=_ROW_0, rngs=(rng,))
+        noise = cfg.randomization.obs_noise
+        if noise > 0:
+            add_frame_noise(self.obs[0, :f], noise, _generator((rng,), 0))
+        total = 0.0  # the terms in order, as terms.sum(axis=0) adds them
+        for term in self.terms[:, 0].tolist():
+            total += term
+        return total, bool(terminated)
+
     def _step_batched(
         self, actions: np.ndarray, skip: np.ndarray | None
     ) -> tuple[np.ndarray, np.ndarray, np.ndarray, Any]:
@@ -372,7 +443,8 @@ class EpisodeBatch:
         win = self.windows if self.windows is not None else SlipWindows(1, 1)
         return (
             *cfg.actions.map_constants(),
-            self._cmd, self._ctrl, *p.step_arrays(), cfg.n_substeps,
+            self._cmd, self._ctrl, self._sent, self.latency, self._applied,
+            *p.step_arrays(), cfg.n_substeps,
             p.ch_limit, p.dn_limit, p.base_limit,
             *self._status.arrays(), self.mu, self._no_skip,
             0 if self.windows is None else win.window, cfg.terminate_on_slip, win.left,
@@ -384,16 +456,21 @@ class EpisodeBatch:
         )
 
     def _step_fused(self, actions: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, Any]:
-        """:meth:`_step_batched` of one episode without set-point latency in one compiled call
+        """:meth:`_step_batched` of one episode in one compiled call
         (:func:`~softhand_env.envs.fused.control_step`; with ideal sensors also the newest
         observation frame)."""
         p = self.physics
-        read = np.empty((1, READ_SIZE))
-        ok = control_step(actions, self._r.setpoint, read, p.integrator == "ros2",
-                          p.ros2_dt, *self._fused_args)
+        # the read-outs go to one block kept for the episode (info copies its rows); the
+        # previous set-points are read before the block is written
+        if self._fused_pack is None:
+            self._fused_pack = pack_arguments(*self._fused_args)
+        # the previous commanded set-points (with latency not those applied)
+        prev = self._sent[:, 0] if self.cfg.setpoint_latency else self._r.setpoint
+        ok = control_step_packed(actions, prev, self._read_block,
+                                 p.integrator == "ros2", p.ros2_dt, self._fused_pack)
         if not ok:
             raise ValueError(f"action must be finite (got {actions.tolist()})")
-        self._r = HandReadouts.of_block(read)
+        self._r = self._read_views
         self.reason[0] = REASON_NAMES[self._reason_code[0]]
         return self._failed, self.grasped, self._bad, self._ctrl
 
@@ -442,28 +519,33 @@ class EpisodeBatch:
     def info(self, i: int = 0) -> dict[str, Any]:
         """``info`` of environment ``i`` as a single environment returns it: the row i of
         :meth:`info_values`, with Python scalars for the scalar keys."""
-        # the keys of _info_arrays, built directly (a single env does this every step); the
-        # read-out rows are views of this step's fresh read-out copies
+        # the keys of _info_arrays, built directly (a single env does this every step)
         r = self._r
+        ce, fr, ci, te, va, go = (self._rows0 if i == 0 else self._rows(i))
         info: dict[str, Any] = {
-            "object_pose": r.object_pose[i],
-            "deformation": r.deformation[i],
-            "constraint_error": self.constraint_error[i].copy(),
+            "object_pose": r.object_pose[i].copy(),
+            "deformation": r.deformation[i].copy(),
+            "constraint_error": ce.copy(),
             "grasped": bool(self.grasped[i]),
             "is_success": bool(self.success[i]),
-            "setpoint": r.setpoint[i],
+            "setpoint": r.setpoint[i].copy(),
             "physics_flags": int(self.flags[i]),
             "setpoint_latency": int(self.latency[i]),
-            "friction_ratio": self.friction_ratio[i].copy(),
-            "contact_impulse": self.contact_impulse[i].copy(),
-            "tension": self.tension[i].copy(),
-            "contact_validated": self.validated[i].copy(),
+            "friction_ratio": fr.copy(),
+            "contact_impulse": ci.copy(),
+            "tension": te.copy(),
+            "contact_validated": va.copy(),
             "termination_reason": self.reason[i],
         }
         if self.task.goal_dim:
-            info["goal"] = self.goal[i].copy()
+            info["goal"] = go.copy()
         info.update(zip(self.task.terms, self.terms[:, i].tolist(), strict=True))
         return info
+
+    def _rows(self, i: int) -> tuple[np.ndarray, ...]:
+        """Row ``i`` of the per-step info arrays that :meth:`info` copies (views)."""
+        return (self.constraint_error[i], self.friction_ratio[i], self.contact_impulse[i],
+                self.tension[i], self.validated[i], self.goal[i])
 
     def _refresh_validated(self) -> None:
         """Each fingertip inside the contact model's validated box (d_n <= 8 mm of a = 20 mm,

@@ -123,3 +123,23 @@ def test_observation_noise_is_seeded_and_zero_by_default():
     clean.step(a)
     noisy.step(a)
     np.testing.assert_array_equal(clean.physics.get_state(), noisy.physics.get_state())
+
+
+def test_frame_noise_is_the_float32_sum_clipped_to_the_bound():
+    """The compiled noise step equals NumPy's float32 ``+=`` followed by the clip, bit for bit
+    (also at and beyond the bound), and draws exactly ``size`` normals from the generator."""
+    from softhand_env.envs.observation import add_frame_noise
+
+    rng = np.random.default_rng(0)
+    for k in range(500):
+        frame = (rng.normal(size=12) * 10.0 ** rng.integers(-3, 3)).astype(np.float32)
+        frame[k % 12] = OBS_BOUND * (-1) ** k - 1e-3 * (-1) ** k  # just inside the bound
+        std = float(10.0 ** rng.integers(-3, 2))
+        expected = frame.copy()
+        expected += np.random.default_rng(k).normal(0.0, std, size=12)
+        np.clip(expected, -OBS_BOUND, OBS_BOUND, out=expected)
+        g = np.random.default_rng(k)
+        add_frame_noise(frame, std, g)
+        np.testing.assert_array_equal(frame.view(np.int32), expected.view(np.int32))
+        # the generator advanced by exactly the 12 draws
+        assert g.normal() == np.random.default_rng(k).normal(size=13)[12]
