@@ -317,13 +317,8 @@ class EpisodeBatch:
         cfg, n = self.cfg, self.num_envs
         layout = cfg.layout
         f, h = layout.frame_size, layout.history_size
-        observed = False
-        if (self._fused and skip is None and isinstance(actions, np.ndarray)
-                and actions.shape == (1, 2) and actions.dtype in _FUSED_DTYPES):
-            failed, grasped, contact, ctrl = self._step_fused(actions)
-            observed = self.sensing is None
-        else:
-            failed, grasped, contact, ctrl = self._step_batched(actions, skip)
+        # (a single episode steps through step_one and its one compiled call)
+        failed, grasped, contact, ctrl = self._step_batched(actions, skip)
         if cfg.terminate_on_slip:
             failed = failed | contact
         r = self._r
@@ -342,10 +337,9 @@ class EpisodeBatch:
             self.reason[terminated & ~failed] = "success"
         # observations: shift the history, write the newest frames
         rows = np.arange(n) if skip is None else np.flatnonzero(~skip)
-        if not observed:
-            if h > f:
-                self.obs[:, f:h] = self.obs[:, : h - f]
-            self._frames(self.obs, rows=rows, rngs=rngs)
+        if h > f:
+            self.obs[:, f:h] = self.obs[:, : h - f]
+        self._frames(self.obs, rows=rows, rngs=rngs)
         noise = cfg.randomization.obs_noise
         if noise > 0:
             for i in rows:
@@ -460,11 +454,10 @@ class EpisodeBatch:
         (:func:`~softhand_env.envs.fused.control_step`; with ideal sensors also the newest
         observation frame)."""
         p = self.physics
-        # the read-outs go to one block kept for the episode (info copies its rows); the
-        # previous set-points are read before the block is written
         if self._fused_pack is None:
             self._fused_pack = pack_arguments(*self._fused_args)
-        # the previous commanded set-points (with latency not those applied)
+        # the previous commanded set-points (with latency not those applied), read before the
+        # call writes the read-outs into the block kept for the episode (info copies its rows)
         prev = self._sent[:, 0] if self.cfg.setpoint_latency else self._r.setpoint
         ok = control_step_packed(actions, prev, self._read_block,
                                  p.integrator == "ros2", p.ros2_dt, self._fused_pack)
