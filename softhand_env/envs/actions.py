@@ -180,3 +180,19 @@ def _map_setpoints(a, prev, kind, max_delta, mid, half, low, high, u, ctrl):
         d1 = (u[s, 1] - prev[s, 1]) / max_delta
         ctrl[s] = d0 * d0 + d1 * d1
     return True
+
+
+@njit(cache=True)
+def delay_setpoints(cmd, sent, latency, applied):
+    """Set-point latency: record the commanded set-points cmd (N, 2) as the newest of sent
+    (N, K, 2) (the last K commands, newest first; K > 0) and write into applied (N, 2) those
+    commanded latency[s] (int (N,), 0..K) steps ago, cmd itself for 0."""
+    for s in range(cmd.shape[0]):
+        lag = latency[s]
+        for j in range(2):
+            applied[s, j] = cmd[s, j] if lag == 0 else sent[s, lag - 1, j]
+        for k in range(sent.shape[1] - 1, 0, -1):
+            sent[s, k, 0] = sent[s, k - 1, 0]
+            sent[s, k, 1] = sent[s, k - 1, 1]
+        sent[s, 0, 0] = cmd[s, 0]
+        sent[s, 0, 1] = cmd[s, 1]

@@ -6,8 +6,8 @@ instead of one Python-dispatched call each (every dispatch costs about a microse
 twentieth of a ROS2 control step)::
 
     action -> set-points          (envs.actions.ActionMap.setpoints' map; with set-point
-                                  latency the ones commanded L steps ago, as
-                                  EpisodeBatch._delay)
+                                  latency the ones commanded L steps ago,
+                                  envs.actions.delay_setpoints)
            -> physics step        (physics.HandPhysics.step for one hand), or the pieces
                                   of the slip windows (envs.windows.SlipWindows.step)
            -> contact check       (physics.friction.check_contact)
@@ -28,7 +28,7 @@ from __future__ import annotations
 from numba import njit, types
 from numba.experimental import structref
 
-from softhand_env.envs.actions import _map_setpoints
+from softhand_env.envs.actions import _map_setpoints, delay_setpoints
 from softhand_env.envs.observation import observe_rows
 from softhand_env.envs.windows import _account
 from softhand_env.physics import friction, validity
@@ -40,20 +40,6 @@ from softhand_env.physics.hand import (
 )
 from softhand_env.physics.kernel import IMPULSE_OFFSET
 from softhand_env.physics.model import DN_1, DT_1, NQ, TH_1, X_OBJ
-
-
-@njit(cache=True)
-def _delay(CMD, SENT, LATENCY, APPLIED):
-    """Record the commanded set-points CMD (1, 2) as the newest of SENT (1, K, 2) and write
-    those commanded LATENCY[0] steps ago into APPLIED (1, 2) (CMD itself for 0)."""
-    lag = LATENCY[0]
-    for j in range(2):
-        APPLIED[0, j] = CMD[0, j] if lag == 0 else SENT[0, lag - 1, j]
-    for k in range(SENT.shape[1] - 1, 0, -1):
-        SENT[0, k, 0] = SENT[0, k - 1, 0]
-        SENT[0, k, 1] = SENT[0, k - 1, 1]
-    SENT[0, 0, 0] = CMD[0, 0]
-    SENT[0, 0, 1] = CMD[0, 1]
 
 
 @njit(cache=True)
@@ -92,7 +78,7 @@ def control_step(A, PREV, READ, ros2, H, kind, max_delta, mid, half, low, high, 
         return False
     SRC = CMD
     if SENT.shape[1] > 0:
-        _delay(CMD, SENT, LATENCY, APPLIED)
+        delay_setpoints(CMD, SENT, LATENCY, APPLIED)
         SRC = APPLIED
     if window > 0:
         OUT_FLAGS[0] = 0

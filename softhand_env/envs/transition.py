@@ -20,6 +20,7 @@ from typing import Any
 
 import numpy as np
 
+from softhand_env.envs.actions import delay_setpoints
 from softhand_env.envs.config import EnvConfig
 from softhand_env.envs.fused import control_step_packed, pack_arguments
 from softhand_env.envs.observation import add_frame_noise, observe_rows
@@ -482,11 +483,10 @@ class EpisodeBatch:
 
     def _delay(self, u: np.ndarray) -> np.ndarray:
         """Record the commanded set-points ``u`` (N, 2); return those to apply this step: the
-        ones commanded ``latency`` steps ago (see the class doc)."""
-        sent = np.concatenate((u[:, None], self._sent), axis=1)  # [:, L] = commanded L ago
-        applied = sent[np.arange(self.num_envs), self.latency]
-        self._sent[:] = sent[:, :-1]
-        return applied
+        ones commanded ``latency`` steps ago (see the class doc; overwritten by the next
+        step)."""
+        delay_setpoints(u, self._sent, self.latency, self._applied)
+        return self._applied
 
     # ------------------------------------------------------------------------------- info
     def info_values(self) -> dict[str, np.ndarray]:

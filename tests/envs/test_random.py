@@ -208,3 +208,24 @@ def test_every_corner_of_the_random_ranges_is_rk4_stable():
     stability.check_randomization_ranges(base, groups, widths)
     with pytest.raises(ValueError, match="rand_"):
         stability.check_randomization_ranges(load_hand_params("paper_ch5"), groups, widths)
+
+
+def test_delay_setpoints_applies_the_command_of_latency_steps_ago():
+    """The compiled delay both step paths share, against a plain history of commands: with
+    K = 3 and latencies 0..3 per row, step t applies the command of step t - L (the start
+    set-points before the first command)."""
+    from softhand_env.envs.actions import delay_setpoints
+
+    k, latency = 3, np.array([0, 1, 2, 3])
+    start = np.array([[0.1, -0.1]] * 4)
+    sent = np.repeat(start[:, None], k, axis=1).copy()
+    applied = np.empty((4, 2))
+    history = []
+    for t, cmd in enumerate(np.random.default_rng(0).normal(size=(9, 4, 2))):
+        history.append(cmd)
+        delay_setpoints(cmd, sent, latency, applied)
+        for s, lag in enumerate(latency):
+            want = history[t - lag][s] if t >= lag else start[s]
+            np.testing.assert_array_equal(applied[s], want)
+        newest = np.array(history[::-1][:k]).transpose(1, 0, 2)  # (4, <=k, 2), newest first
+        np.testing.assert_array_equal(sent[:, : newest.shape[1]], newest)
