@@ -24,6 +24,7 @@ import numpy as np
 from numba import njit
 
 from softhand_env.physics import friction, kernel, rosenbrock
+from softhand_env.physics.dispatch import ParallelChoice
 from softhand_env.physics.failure import REASONS, classify
 from softhand_env.physics.model import (
     DN_1,
@@ -405,6 +406,10 @@ class HandPhysics:
         self._u = self._y[:, TH_1 : TH_1 + 2].copy()
         self._time = np.zeros(n)
         self._check_stability = bool(check_stability)
+        # serial or parallel batched calls, by measured time (results the same either way),
+        # for at least two blocks of lanes under ROS2 (one block does not share), 2 hands RK4
+        self._dispatch = ParallelChoice()
+        self._parallel_min = 2 * kernel.LANES if self._integrator == "ros2" else 2
 
     # ----------------------------------------------------------------- state management
     @property
@@ -599,12 +604,18 @@ class HandPhysics:
                 if skip is not None:
                     flags[skip] = kernel.FLAG_SKIP
                 diag[:] = 0.0
+                choice = self._dispatch
+                parallel = self._n >= self._parallel_min and choice.next()
+                t0 = choice.clock()
                 if ros2:
                     rosenbrock.advance_batch(self._y, self._u, self._prm, n, self._ros2_dt,
-                                             self.ch_limit, diag, flags)
+                                             self.ch_limit, diag, flags, parallel)
                 else:
                     kernel.advance_batch(self._y, self._u, self._prm, n, self.ch_limit, diag,
-                                         flags)
+                                         flags, parallel)
+                if self._n >= self._parallel_min:
+                    choice.record(parallel, choice.clock() - t0,
+                                  self._n if skip is None else self._n - int(skip.sum()))
                 _finish_step(flags, self._y, y_prev, self._prm, diag, self._time,
                              self.ch_limit, self.dn_limit, self.base_limit,
                              status._failed, status._grasped, status._reason)

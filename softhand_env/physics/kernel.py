@@ -635,12 +635,16 @@ def advance_batch(
     ch_limit: float,
     DIAG: np.ndarray,
     FLAGS: np.ndarray,
+    parallel: bool | None = None,
 ) -> None:
     """Advance ``N`` independent systems ``n`` substeps each, in place, in parallel.
 
     A single system runs on the calling thread: a parallel region would only add its launch
     and, on a loaded machine, the wait for a descheduled worker thread (milliseconds), for
-    nothing to share.
+    nothing to share. ``parallel`` True / False runs the blocks over numba's threads / on the
+    calling thread whatever N (the results are the same either way); None (default) is the
+    rule above. :class:`~softhand_env.physics.hand.HandPhysics` chooses by measured time
+    (:mod:`softhand_env.physics.dispatch`).
 
     Parameters
     ----------
@@ -660,7 +664,9 @@ def advance_batch(
         Status flags per system. On entry, systems carrying ``FLAG_SKIP`` or a fatal flag
         are skipped (their flags are kept); the others get their new flags.
     """
-    if Y.shape[0] == 1:
+    if parallel is None:
+        parallel = Y.shape[0] > 1
+    if not parallel:
         advance_batch_serial(Y, U, PRM, n, ch_limit, DIAG, FLAGS)
     else:
         _advance_parallel(Y, U, PRM, n, ch_limit, DIAG, FLAGS)

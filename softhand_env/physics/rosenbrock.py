@@ -73,7 +73,9 @@ lanes of a block whose body is straight-line code (the non-zero entries of Phi w
 the 4 x 4 factorisation and solves unrolled, M^-1 and 1 / (1 + g kappa) computed once per
 block or step instead of divided inside), so that LLVM vectorises them across systems; a
 block's step data also live in structure-of-arrays form (``W[row * LANES + lane]``). Blocks run
-in parallel above :data:`PARALLEL_MIN_WORK` system-steps, on the calling thread below. A
+in parallel above :data:`PARALLEL_MIN_WORK` system-steps, on the calling thread below, unless
+the caller chooses (``parallel``; :class:`~softhand_env.physics.hand.HandPhysics` measures which
+is faster, :mod:`softhand_env.physics.dispatch`). A
 system integrated alone or in any batch follows the same arithmetic, so it ends bit for bit
 equal. All systems of a call must share ``dt`` (one schedule).
 """
@@ -740,7 +742,7 @@ def advance_batch_serial(Y, U, PRM, n, H, ch_limit, DIAG, FLAGS):
 
 
 #: System-steps (systems x ROS2 steps) below which :func:`advance_batch` runs on the calling
-#: thread: about 4 ms of work (some 85 ns a system-step in lanes; 512 systems over a 20 ms
+#: thread unless told otherwise: about 4 ms of work (some 85 ns a system-step in lanes; 512 systems over a 20 ms
 #: control step are 11,776). A parallel region costs its launch and, on a loaded machine,
 #: the wait for a descheduled worker thread; with the OpenMP threading layer's default wait
 #: policy that wait measured 15-25 ms a call on a shared 2-core machine, twenty times the
@@ -762,6 +764,7 @@ def advance_batch(
     ch_limit: float,
     DIAG: np.ndarray,
     FLAGS: np.ndarray,
+    parallel: bool | None = None,
 ) -> None:
     """Advance ``N`` systems over ``n`` substeps of their ``dt`` with ROS2 at step ``H``.
 
@@ -774,14 +777,19 @@ def advance_batch(
     substeps of ``dt`` at the fatal stop. Every system must have the same ``dt``
     (``ValueError`` otherwise).
 
-    A call of fewer than :data:`PARALLEL_MIN_WORK` system-steps runs on the calling thread
-    (the results are the same either way).
+    ``parallel``: True runs the blocks over numba's threads, False on the calling thread
+    (the results are the same either way); None (default) runs a call of fewer than
+    :data:`PARALLEL_MIN_WORK` system-steps on the calling thread
+    (:class:`~softhand_env.physics.hand.HandPhysics` chooses by measured time instead,
+    :mod:`softhand_env.physics.dispatch`).
     """
     if not H > 0.0:
         raise ValueError(f"H must be > 0 (got {H!r})")
     _check_uniform_dt(PRM)
     N = Y.shape[0]
-    if N * len(step_schedule(n * float(PRM[0, P_DT]), H)) < PARALLEL_MIN_WORK:
+    if parallel is None:
+        parallel = N * len(step_schedule(n * float(PRM[0, P_DT]), H)) >= PARALLEL_MIN_WORK
+    if not parallel:
         advance_batch_serial(Y, U, PRM, n, H, ch_limit, DIAG, FLAGS)
     else:
         _advance_parallel(Y, U, PRM, n, H, ch_limit, DIAG, FLAGS)

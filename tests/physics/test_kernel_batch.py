@@ -74,9 +74,9 @@ def run_single(Y, U, PRM, n, FLAGS_IN=None, ch_limit=CH_LIMIT):
     return Y, DIAG, FLAGS
 
 
-def run_batch(Y, U, PRM, n, FLAGS_IN=None, ch_limit=CH_LIMIT):
+def run_batch(Y, U, PRM, n, FLAGS_IN=None, ch_limit=CH_LIMIT, parallel=None):
     Y, DIAG, FLAGS = _outputs(Y, FLAGS_IN)
-    kernel.advance_batch(Y, U, PRM, n, ch_limit, DIAG, FLAGS)
+    kernel.advance_batch(Y, U, PRM, n, ch_limit, DIAG, FLAGS, parallel)
     return Y, DIAG, FLAGS
 
 
@@ -101,6 +101,14 @@ def test_heterogeneous_batch_matches_single_kernel(N):
     Y, U, PRM = random_batch(N, seed=N)
     single = run_single(Y, U, PRM, 400)
     assert_same(run_batch(Y, U, PRM, 400), single)
+
+
+@pytest.mark.parametrize("parallel", [False, True])
+def test_serial_and_parallel_blocks_match_single_kernel(parallel):
+    """The blocks on the calling thread or over numba's threads: the same numbers (what lets
+    HandPhysics choose the mode by time)."""
+    Y, U, PRM = random_batch(37, seed=3)
+    assert_same(run_batch(Y, U, PRM, 400, parallel=parallel), run_single(Y, U, PRM, 400))
 
 
 def test_mix_of_kept_and_broken_grasps_stops_each_system_at_its_own_substep():
