@@ -18,6 +18,7 @@ The environments refuse ranges whose extremes leave RK4's stable region at const
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass
 
 import numpy as np
@@ -79,7 +80,7 @@ class Randomization:
             out[key] = float(value)
         return cls(**out)
 
-    @property
+    @functools.cached_property
     def params_active(self) -> bool:
         """True if any hand parameter is randomised (the friction coefficient included)."""
         return any(getattr(self, key) > 0 for key in FIELDS) or self.rand_friction > 0

@@ -182,6 +182,8 @@ class GoalTask(Task):
         self.terminate_on_success = bool(terminate_on_success)
         self._ranges = np.array([t.goal_range for t in self.targets])
         self._obs_scales = np.array([t.obs_scale for t in self.targets])
+        # (pose index, tolerance, error scale) per target, as evaluate reads them every step
+        self._scoring = tuple((t.index, t.tolerance, t.scale) for t in self.targets)
         #: Goals are drawn from ``goal_scale`` times the goal ranges (curriculum; 1 = as set).
         self.goal_scale = 1.0
 
@@ -215,10 +217,10 @@ class GoalTask(Task):
         success = (bool(grasped) and not failed) if scalar else (
             grasped & ~np.asarray(failed, dtype=bool))
         err = 0.0
-        for target, g in zip(self.targets, goal, strict=True):
-            d = abs(pose[target.index] - g)
-            err = err + d / target.scale
-            within = d <= target.tolerance
+        for (index, tolerance, scale), g in zip(self._scoring, goal, strict=True):
+            d = abs(pose[index] - g)
+            err = err + d / scale
+            within = d <= tolerance
             success = (success and within) if scalar else (success & within)
         terms = (
             self.goal_weight * np.exp(-err),

@@ -177,13 +177,14 @@ class EpisodeBatch:
         self._read_views = HandReadouts.of_block(self._read_block)
         self._fused_pack: Any = None  # fused.Arguments of _fused_args, built on first use
         self._rows0 = self._rows(0)  # views, as info reads row 0 every step of a single env
+        self._reads0 = self._read_rows0()
         if self._fused:
             self._fused_args = self._fused_arguments()
 
     def __getstate__(self) -> dict[str, Any]:
         state = self.__dict__.copy()
         state["_fused_pack"] = None  # a compiled record does not pickle; rebuilt on use
-        del state["_read_views"], state["_rows0"]  # views would unpickle as copies
+        del state["_read_views"], state["_rows0"], state["_reads0"]  # views unpickle as copies
         if self._r is self._read_views:
             state["_r"] = None
         return state
@@ -192,6 +193,7 @@ class EpisodeBatch:
         self.__dict__.update(state)
         self._read_views = HandReadouts.of_block(self._read_block)
         self._rows0 = self._rows(0)
+        self._reads0 = self._read_rows0()
         if self._r is None:
             self._r = self._read_views
 
@@ -235,20 +237,21 @@ class EpisodeBatch:
         p = self.physics
         r = self._r = p.readouts()
         self._refresh_validated()
-        grasped = (r.deformation[:, 0] > 0.0) & (r.deformation[:, 1] > 0.0)
-        _, success = self._evaluate(r.object_pose, np.zeros(self.num_envs),
-                                    np.zeros(self.num_envs, dtype=bool), grasped)
-        self.constraint_error[mask] = p.constraint_errors(np.flatnonzero(mask))
-        self.grasped[mask] = grasped[mask]
-        self.success[mask] = np.broadcast_to(success, (self.num_envs,))[mask]
+        rows = np.flatnonzero(mask)
+        grasped = (r.deformation[rows, 0] > 0.0) & (r.deformation[rows, 1] > 0.0)
+        _, success = self._evaluate(r.object_pose, np.zeros(rows.size),
+                                    np.zeros(rows.size, dtype=bool), grasped, rows)
+        self.constraint_error[rows] = p.constraint_errors(rows)
+        self.grasped[rows] = grasped
+        self.success[rows] = np.broadcast_to(success, (rows.size,))
         layout = self.cfg.layout
         f, h = layout.frame_size, layout.history_size
-        frames = self._frames(rows=np.flatnonzero(mask), rngs=rngs, first=True)
-        goal_obs = self.task.goal_observation(self.goal)
+        frames = self._frames(rows=rows, rngs=rngs, first=True)
+        goal_obs = self.task.goal_observation(self.goal[rows])
         noise = self.cfg.randomization.obs_noise
-        for i in np.flatnonzero(mask):
+        for k, i in enumerate(rows):
             out = self.obs[i]
-            out[h:] = goal_obs[i]
+            out[h:] = goal_obs[k]
             out[:f] = frames[i]
             if noise > 0:
                 add_frame_noise(out[:f], noise, _generator(rngs, i))
@@ -256,16 +259,21 @@ class EpisodeBatch:
                 out[k * f : (k + 1) * f] = out[:f]
 
     def _evaluate(
-        self, pose: np.ndarray, ctrl: np.ndarray, failed: np.ndarray, grasped: np.ndarray
+        self, pose: np.ndarray, ctrl: np.ndarray, failed: np.ndarray, grasped: np.ndarray,
+        rows: np.ndarray | None = None,
     ) -> tuple[tuple[Any, ...], Any]:
         """The task's reward terms and success for object poses (N, 3) (one episode: on
-        Python scalars, see :meth:`_refresh_goal_columns`)."""
+        Python scalars, see :meth:`_refresh_goal_columns`); with ``rows`` (int (k,)) for
+        those environments only (``ctrl``, ``failed``, ``grasped`` then (k,))."""
         if self.num_envs == 1:
             return self.task.evaluate(
                 tuple(pose[0].tolist()), self._goal_cols, float(ctrl[0]), bool(failed[0]),
                 bool(grasped[0]), scalar=True,
             )
-        return self.task.evaluate(tuple(pose.T), self._goal_cols, ctrl, failed, grasped)
+        if rows is None:
+            return self.task.evaluate(tuple(pose.T), self._goal_cols, ctrl, failed, grasped)
+        return self.task.evaluate(tuple(pose[rows].T), tuple(c[rows] for c in self._goal_cols),
+                                  ctrl, failed, grasped)
 
     def _frames(
         self,
@@ -391,9 +399,9 @@ class EpisodeBatch:
         noise = cfg.randomization.obs_noise
         if noise > 0:
             add_frame_noise(self.obs[0, :f], noise, _generator((rng,), 0))
-        total = 0.0  # the terms in order, as terms.sum(axis=0) adds them
-        for term in self.terms[:, 0].tolist():
-            total += term
+        total = 0.0  # the terms in order, as terms.sum(axis=0) adds them (the stored doubles)
+        for term in terms:
+            total += float(term)
         return total, bool(terminated)
 
     def _step_batched(
@@ -515,13 +523,17 @@ class EpisodeBatch:
         # the keys of _info_arrays, built directly (a single env does this every step)
         r = self._r
         ce, fr, ci, te, va, go = (self._rows0 if i == 0 else self._rows(i))
+        if i == 0 and r is self._read_views:
+            pose, deformation, setpoint = self._reads0
+        else:
+            pose, deformation, setpoint = r.object_pose[i], r.deformation[i], r.setpoint[i]
         info: dict[str, Any] = {
-            "object_pose": r.object_pose[i].copy(),
-            "deformation": r.deformation[i].copy(),
+            "object_pose": pose.copy(),
+            "deformation": deformation.copy(),
             "constraint_error": ce.copy(),
             "grasped": bool(self.grasped[i]),
             "is_success": bool(self.success[i]),
-            "setpoint": r.setpoint[i].copy(),
+            "setpoint": setpoint.copy(),
             "physics_flags": int(self.flags[i]),
             "setpoint_latency": int(self.latency[i]),
             "friction_ratio": fr.copy(),
@@ -539,6 +551,12 @@ class EpisodeBatch:
         """Row ``i`` of the per-step info arrays that :meth:`info` copies (views)."""
         return (self.constraint_error[i], self.friction_ratio[i], self.contact_impulse[i],
                 self.tension[i], self.validated[i], self.goal[i])
+
+    def _read_rows0(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Row 0 of the read-out block's object pose, deformation and set-points (views, what
+        :meth:`info` copies while the read-outs are that block's)."""
+        v = self._read_views
+        return v.object_pose[0], v.deformation[0], v.setpoint[0]
 
     def _refresh_validated(self) -> None:
         """Each fingertip inside the contact model's validated box (d_n <= 8 mm of a = 20 mm,
