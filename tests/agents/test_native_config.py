@@ -20,9 +20,12 @@ def test_reorient_native_entry_loads_and_keeps_the_ppo_yml_task_settings():
 
 
 def test_v1_entries_are_the_v0_entries():
-    for task in ("Reorient", "ReorientRandom", "Pose"):
+    for task in ("Reorient", "ReorientRandom", "PoseRandom"):
         assert (load_hyperparams("ppo", f"SoftHand{task}-v1", str(CONF))
                 == load_hyperparams("ppo", f"SoftHand{task}-v0", str(CONF)))
+    # the Pose-v1 student reads its fingertips like the Random tier's
+    assert (load_hyperparams("ppo", "SoftHandPose-v1", str(CONF))
+            == load_hyperparams("ppo", "SoftHandPoseRandom-v0", str(CONF)))
     translate = load_hyperparams("ppo", "SoftHandTranslate-v1", str(CONF))
     shipped = load_hyperparams("ppo", "SoftHandTranslate-v0")  # ppo.yml, the v0 model's entry
     assert translate["env_kwargs"] == shipped["env_kwargs"]
