@@ -79,8 +79,10 @@ class Row:
 ROWS: dict[str, Row] = {
     "pose": Row("Pose, teacher-student (v0 model)", "model", "SoftHandPose-v0",
                 "SoftHandPose-v1"),
-    "pose-v1": Row("Pose, teacher-student (v1 model)", "model", "SoftHandPose-v1",
+    "pose-v1": Row("Pose, teacher-student, fingertips (v1 model)", "model", "SoftHandPose-v1",
                    "SoftHandPose-v1"),
+    "pose-v1-proprio": Row("Pose, teacher-student, joints only (v1 model)", "model",
+                           "SoftHandPose-v1_proprio", "SoftHandPose-v1"),
     "pose-random": Row("PoseRandom, teacher-student, fingertips (v0 model)", "model",
                        "SoftHandPoseRandom-v0", "SoftHandPoseRandom-v1"),
     "pose-random-v1": Row("PoseRandom, teacher-student, fingertips (v1 model)", "model",
