@@ -26,9 +26,8 @@ with skipped hands compare with full ones. The choice changes the speed only, ne
 
 from __future__ import annotations
 
-import time
 from collections import deque
-from collections.abc import Callable
+from statistics import median
 
 
 class ParallelChoice:
@@ -44,19 +43,17 @@ class ParallelChoice:
         Calls between probes of the mode not chosen after a change of choice, >= 1.
     max_refresh : int
         Longest interval between probes (calls), >= ``refresh``.
-    clock : callable
-        Seconds as a float (``time.perf_counter``; a test may pass its own).
 
     Use::
 
         parallel = choice.next()
-        t0 = choice.clock()
+        t0 = time.perf_counter()
         ...  # the call, on numba's threads if parallel else on this one
-        choice.record(parallel, choice.clock() - t0, hands)
+        choice.record(parallel, time.perf_counter() - t0, hands)
     """
 
     def __init__(self, probes: int = 3, window: int = 5, refresh: int = 32,
-                 max_refresh: int = 2048, clock: Callable[[], float] = time.perf_counter):
+                 max_refresh: int = 2048):
         if probes < 1 or window < probes or refresh < 1 or max_refresh < refresh:
             raise ValueError(
                 "need probes >= 1, window >= probes, refresh >= 1 and max_refresh >= refresh "
@@ -66,7 +63,6 @@ class ParallelChoice:
         self.window = window
         self.refresh = refresh
         self.max_refresh = max_refresh
-        self.clock = clock
         self._times: tuple[deque[float], deque[float]] = (deque(maxlen=window),
                                                           deque(maxlen=window))
         self._seen = [0, 0]
@@ -93,7 +89,7 @@ class ParallelChoice:
         serial, parallel = self._times
         if not serial or not parallel:
             return False
-        return _median(parallel) < _median(serial)
+        return median(parallel) < median(serial)
 
     def record(self, parallel: bool, seconds: float, hands: int) -> None:
         """Record a call that took ``seconds`` (s) in the mode ``parallel`` and advanced
@@ -119,12 +115,6 @@ class ParallelChoice:
     def samples(self) -> tuple[int, int]:
         """Timed calls kept for the serial and the parallel mode."""
         return len(self._times[0]), len(self._times[1])
-
-
-def _median(values: deque[float]) -> float:
-    s = sorted(values)
-    k = len(s) // 2
-    return s[k] if len(s) % 2 else 0.5 * (s[k - 1] + s[k])
 
 
 __all__ = ["ParallelChoice"]

@@ -18,6 +18,7 @@ read-out and status field a leading hand axis (``object_pose`` is (N, 3)).
 from __future__ import annotations
 
 import math
+import time
 from typing import Any, NamedTuple
 
 import numpy as np
@@ -407,9 +408,10 @@ class HandPhysics:
         self._time = np.zeros(n)
         self._check_stability = bool(check_stability)
         # serial or parallel batched calls, by measured time (results the same either way),
-        # for at least two blocks of lanes under ROS2 (one block does not share), 2 hands RK4
-        self._dispatch = ParallelChoice()
-        self._parallel_min = 2 * kernel.LANES if self._integrator == "ros2" else 2
+        # for at least two blocks of lanes under ROS2 (one block does not share), 2 hands RK4;
+        # None: always on the calling thread
+        parallel_min = 2 * kernel.LANES if self._integrator == "ros2" else 2
+        self._dispatch = ParallelChoice() if n >= parallel_min else None
 
     # ----------------------------------------------------------------- state management
     @property
@@ -605,16 +607,16 @@ class HandPhysics:
                     flags[skip] = kernel.FLAG_SKIP
                 diag[:] = 0.0
                 choice = self._dispatch
-                parallel = self._n >= self._parallel_min and choice.next()
-                t0 = choice.clock()
+                parallel = choice is not None and choice.next()
+                t0 = time.perf_counter()
                 if ros2:
                     rosenbrock.advance_batch(self._y, self._u, self._prm, n, self._ros2_dt,
                                              self.ch_limit, diag, flags, parallel)
                 else:
                     kernel.advance_batch(self._y, self._u, self._prm, n, self.ch_limit, diag,
                                          flags, parallel)
-                if self._n >= self._parallel_min:
-                    choice.record(parallel, choice.clock() - t0,
+                if choice is not None:
+                    choice.record(parallel, time.perf_counter() - t0,
                                   self._n if skip is None else self._n - int(skip.sum()))
                 _finish_step(flags, self._y, y_prev, self._prm, diag, self._time,
                              self.ch_limit, self.dn_limit, self.base_limit,

@@ -742,11 +742,11 @@ def advance_batch_serial(Y, U, PRM, n, H, ch_limit, DIAG, FLAGS):
 
 
 #: System-steps (systems x ROS2 steps) below which :func:`advance_batch` runs on the calling
-#: thread unless told otherwise: about 4 ms of work (some 85 ns a system-step in lanes; 512 systems over a 20 ms
-#: control step are 11,776). A parallel region costs its launch and, on a loaded machine,
-#: the wait for a descheduled worker thread; with the OpenMP threading layer's default wait
-#: policy that wait measured 15-25 ms a call on a shared 2-core machine, twenty times the
-#: work of 512 systems.
+#: thread unless told otherwise: about 4 ms of work (some 85 ns a system-step in lanes; 512
+#: systems over a 20 ms control step are 11,776). A parallel region costs its launch and, on
+#: a loaded machine, the wait for a descheduled worker thread; with the OpenMP threading
+#: layer's default wait policy that wait measured 15-25 ms a call on a shared 2-core
+#: machine, twenty times the work of 512 systems.
 PARALLEL_MIN_WORK = 50_000
 
 

@@ -102,9 +102,7 @@ def test_hand_physics_states_do_not_depend_on_the_mode(integrator):
     setpoints = np.radians(rng.uniform(2.0, 12.0, (12, 64, 2)))
     chosen = HandPhysics(params, num_hands=64)
     serial = HandPhysics(params, num_hands=64)
-    serial._dispatch = ParallelChoice(probes=1, refresh=1, max_refresh=1,
-                                      clock=lambda: 0.0)
-    serial._parallel_min = 10**9  # never parallel
+    serial._dispatch = None  # always on the calling thread
     for u in setpoints:
         a = chosen.step(u, 100, strict=False)
         b = serial.step(u, 100, strict=False)
