@@ -14,7 +14,8 @@ wrappers' features) and learns to act as the teacher would, by DAgger (Ross et a
 3. fit the student's mean action to the labels (mean squared error, Adam; the step size goes
    linearly from ``--lr`` to ``--lr-final``), then validate the student alone on the
    validation goals (``reset(seed=eval_seed + k)``, the benchmark's success rule) and keep the
-   best iteration.
+   best iteration (``--select``: by success rate, then median final error; or by success
+   rate, then the strict rate within 0.5 mm / 0.5 deg, then median final error).
 
 The student may read more than the teacher's blind observation: a longer history of frames
 (``history_len``), the fingertips' tactile entries (``obs_mode: proprio_tactile``) and the
@@ -50,13 +51,14 @@ from agents.common.env_factory import make_env, task_targets, wrapper_list
 from agents.common.metrics import (
     error_score,
     final_errors,
+    strict_success,
     success_kwargs,
     summarize,
     summary_success_text,
 )
 from agents.runs.loading import ModelPolicy
 from agents.runs.model_files import sha256
-from agents.runs.records import DaggerSchedule, DistillOutcome, EvalSettings
+from agents.runs.records import SELECT_RULES, DaggerSchedule, DistillOutcome, EvalSettings
 from agents.runs.writing import write_args, write_run_config
 from agents.sb3.interrupts import DeferredSignals, Interrupted
 from agents.sb3.native_vec_env import make_sb3_vec_env
@@ -124,6 +126,10 @@ def make_distill_parser() -> argparse.ArgumentParser:
     p.add_argument("--latency-labels", action="store_true",
                    help="label the states of an episode with set-point latency L with the "
                         "teacher's action L steps later, when the command takes effect")
+    p.add_argument("--select", choices=SELECT_RULES, default="success",
+                   help="rank of the validated iterations, the best kept: success (success "
+                        "rate, then median final error) or strict (success rate, then the "
+                        "strict rate within 0.5 mm / 0.5 deg, then median final error)")
     p.add_argument("--max-samples", type=int, default=2_000_000,
                    help="data set cap (oldest dropped first), 1 .. 1e8")
     return p
@@ -222,10 +228,10 @@ def teacher_view(obs: dict[str, np.ndarray], teacher: ObservationLayout,
 
 def validate(model: Any, venv: Any, targets: Sequence[str], eval_seed: int,
              stop: DeferredSignals | None = None) -> dict[str, float]:
-    """Success and final errors of the deterministic student on goals ``eval_seed + k`` (env k
-    of the native SB3 vector env ``venv``, re-seeded here; the first episode of each).
-    ``stop``: checked before every step (:class:`~agents.sb3.interrupts.Interrupted` once a
-    signal was received)."""
+    """Success, strict success (``success_strict``, within 0.5 mm / 0.5 deg) and final errors
+    of the deterministic student on goals ``eval_seed + k`` (env k of the native SB3 vector env
+    ``venv``, re-seeded here; the first episode of each). ``stop``: checked before every step
+    (:class:`~agents.sb3.interrupts.Interrupted` once a signal was received)."""
     n_eval = venv.num_envs
     venv.seed(eval_seed)
     obs = venv.reset()
@@ -238,8 +244,23 @@ def validate(model: Any, venv: Any, targets: Sequence[str], eval_seed: int,
         for i in np.flatnonzero(dones):
             finished.setdefault(int(i), infos[i])
     infos = [finished[i] for i in range(n_eval)]
-    return summarize(targets, [bool(info.get("is_success", False)) for info in infos],
-                     [final_errors(info, targets) for info in infos])
+    successes = [bool(info.get("is_success", False)) for info in infos]
+    errors = [final_errors(info, targets) for info in infos]
+    summary = summarize(targets, successes, errors)
+    summary["success_strict"] = float(np.mean(
+        [strict_success(ok, err, targets) for ok, err in zip(successes, errors, strict=True)]))
+    return summary
+
+
+def iteration_rank(summary: dict[str, float], targets: Sequence[str],
+                   select: str) -> tuple[float, ...]:
+    """The rank of a validated iteration under ``select`` (larger is better;
+    :data:`~agents.runs.records.SELECT_RULES`): (success rate, -error score) or (success
+    rate, strict success rate, -error score)."""
+    score = -error_score(summary, targets)
+    if select == "strict":
+        return summary["success_rate"], summary["success_strict"], score
+    return summary["success_rate"], score
 
 
 class DelayedLabels:
@@ -428,8 +449,9 @@ def dagger(model: Any, teacher: ModelPolicy, env_id: str, kwargs: dict[str, Any]
                      "beta": beta, "loss": float(loss.detach()), "samples": n, **summary}
             curve.append(point)
             log(f"iteration {k}: beta {beta:.3f}, loss {point['loss']:.5f}, {n} samples, "
-                f"validation success {summary_success_text(summary)} ({point['wall_s']} s)")
-            rank = (summary["success_rate"], -error_score(summary, targets))
+                f"validation success {summary_success_text(summary)}, strict "
+                f"{summary['success_strict']:.0%} ({point['wall_s']} s)")
+            rank = iteration_rank(summary, targets, schedule.select)
             if best is None or rank > best["rank"]:
                 best = {"rank": rank, "iteration": k, "env_steps": steps, **summary}
                 best_state = {key: v.clone() for key, v in policy.state_dict().items()}

@@ -33,6 +33,12 @@ class EvalSettings:
     stop_success: float | None
 
 
+#: Ranks of the validated DAgger iterations (the best is kept): ``success`` orders by the
+#: success rate, then by the lower median final error; ``strict`` by the success rate, then by
+#: the strict success rate (within 0.5 mm / 0.5 deg), then by the median final error.
+SELECT_RULES = ("success", "strict")
+
+
 @dataclass
 class DaggerSchedule:
     """The DAgger schedule of ``agents.distill`` (``record["dagger"]``): ``iterations``;
@@ -43,8 +49,9 @@ class DaggerSchedule:
     data set has grown); Adam step size linear from ``lr`` to ``lr_final``; at most
     ``max_samples`` (blind observation, label) pairs, oldest dropped first;
     ``latency_labels``: label with the teacher's action when the command takes effect
-    (:class:`agents.distill.DelayedLabels`). Range-checked on construction (UserError naming
-    the command-line flag)."""
+    (:class:`agents.distill.DelayedLabels`); ``select``: how validated iterations are ranked
+    (:data:`SELECT_RULES`). Range-checked on construction (UserError naming the command-line
+    flag)."""
 
     iterations: int = 40
     rollout_steps: int = 50
@@ -56,9 +63,13 @@ class DaggerSchedule:
     lr_final: float = 1e-3
     max_samples: int = 2_000_000
     latency_labels: bool = False
+    select: str = "success"
 
     def __post_init__(self) -> None:
         """Range checks (UserError on a bad value)."""
+        if self.select not in SELECT_RULES:
+            raise UserError(f"--select must be one of {', '.join(SELECT_RULES)} "
+                            f"(got {self.select!r})")
         check_range("--iterations", self.iterations, 1, 10_000)
         check_range("--rollout-steps", self.rollout_steps, 1, 100_000)
         check_range("--beta-decay", self.beta_decay, 0.0, 1.0)

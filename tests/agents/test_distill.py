@@ -14,6 +14,7 @@ from agents import distill, train
 from agents.common.cli import UserError
 from agents.runs.loading import ModelPolicy
 from agents.sb3.native_vec_env import make_sb3_vec_env
+from softhand_env.cli import CliError
 
 ENV_ID = "SoftHandReorient-v0"
 WRAPPER = [{"agents.time_feature.TimeFeature": {"max_steps": 8}}]
@@ -223,6 +224,30 @@ def test_minibatches_make_epochs_over_the_data_or_a_fixed_number_of_draws():
     with pytest.raises(UserError, match="--updates"):
         distill.parse_args(["--env", ENV_ID, "--teacher", "t", "--updates", "-1"])
     assert distill.parse_args(["--env", ENV_ID, "--teacher", "t"]).dagger.updates == 0
+
+
+def test_iteration_rank_orders_by_success_then_strict_rate_or_error():
+    def summary(success, strict, x_mm, theta_deg):
+        return {"success_rate": success, "success_strict": strict, "median_x_mm": x_mm,
+                "median_theta_deg": theta_deg}
+
+    targets = ("x", "theta")
+    precise = summary(1.0, 0.95, 0.20, 0.30)  # more strict successes, larger median error
+    close = summary(1.0, 0.90, 0.10, 0.20)
+    better = summary(1.01, 0.0, 5.0, 5.0)  # a higher success rate outranks both
+    for select, winner in (("success", close), ("strict", precise)):
+        ranks = {id(s): distill.iteration_rank(s, targets, select)
+                 for s in (precise, close, better)}
+        assert max(ranks, key=ranks.get) == id(better)
+        assert max((precise, close), key=lambda s: ranks[id(s)]) is winner
+    args = distill.parse_args(["--env", ENV_ID, "--teacher", "t", "--select", "strict"])
+    assert args.dagger.select == "strict"
+    assert distill.parse_args(["--env", ENV_ID, "--teacher", "t"]).dagger.select == "success"
+    with pytest.raises(CliError, match="--select"):
+        distill.parse_args(["--env", ENV_ID, "--teacher", "t", "--select", "loss"])
+    from agents.runs.records import DaggerSchedule
+    with pytest.raises(UserError, match="--select"):
+        DaggerSchedule(select="loss")
 
 
 def test_delayed_labels_pair_a_state_with_the_teacher_action_when_its_command_acts():
