@@ -24,6 +24,11 @@ teacher then reads its part of each student observation (:func:`teacher_view`), 
 can learn to infer from the recent past or its fingertips what the teacher reads in its
 privileged observation (e.g. the randomised parameters of the episode).
 
+With ``--blind-teacher`` the teacher is itself a blind policy (a distilled student, e.g. one
+that reads its fingertips) and the student may read *less* than it: the rollouts run the union
+of both observations (:func:`rollout_layout`) and each policy reads its own part
+(:func:`blind_view`), so a student without fingertip sensing can imitate one with it.
+
 Nothing of the teacher is in the student's inputs or outputs: at play time the student is a
 plain blind policy. The result is saved as a run in the layout of :mod:`agents.train` (a PPO
 zip whose actor is the student; ``algo: ppo``, ``trainer: dagger`` and the teacher's path and
@@ -130,6 +135,11 @@ def make_distill_parser() -> argparse.ArgumentParser:
                    help="rank of the validated iterations, the best kept: success (success "
                         "rate, then median final error) or strict (success rate, then the "
                         "strict rate within 0.5 mm / 0.5 deg, then median final error)")
+    p.add_argument("--blind-teacher", action="store_true",
+                   help="the teacher is a blind policy (e.g. a distilled student that reads "
+                        "its fingertips) instead of a privileged_obs run: the rollouts read "
+                        "both observations (the longer history, tactile entries if either "
+                        "reads them) and each policy its own")
     p.add_argument("--max-samples", type=int, default=2_000_000,
                    help="data set cap (oldest dropped first), 1 .. 1e8")
     return p
@@ -154,20 +164,27 @@ def parse_args(argv: Sequence[str] | None = None) -> DistillSettings:
 VIEW_KEYS = ("history_len", "obs_mode")
 
 
-def check_pair(teacher: ModelPolicy, env_id: str, hp: dict[str, Any]
-               ) -> tuple[dict[str, Any], dict[str, Any]]:
+def check_pair(teacher: ModelPolicy, env_id: str, hp: dict[str, Any],
+               blind_teacher: bool = False) -> tuple[dict[str, Any], dict[str, Any]]:
     """The student's env keywords and the teacher's :data:`VIEW_KEYS` keywords.
 
-    Checks that the teacher plays the same env with the privileged observation (same task,
-    keywords besides :data:`VIEW_KEYS`, wrappers) and that the student's observation contains
-    the teacher's (at least as many frames; tactile entries if the teacher's has them);
-    UserError otherwise.
+    Checks that the teacher plays the same env (same task, keywords besides
+    :data:`VIEW_KEYS`, wrappers) with the privileged observation and that the student's
+    observation contains the teacher's (at least as many frames; tactile entries if the
+    teacher's has them). With ``blind_teacher`` the teacher must instead be a blind policy
+    (no ``privileged_obs``) and the observations need not contain each other (the rollouts
+    read both views, :func:`rollout_layout`). UserError otherwise.
     """
     if teacher.env_id != env_id:
         raise UserError(f"the teacher was trained on {teacher.env_id}, not {env_id}")
     t_kwargs = dict(teacher.env_kwargs)
-    if not t_kwargs.pop("privileged_obs", False):
-        raise UserError("the teacher must be a run with env_kwargs privileged_obs: true")
+    privileged = bool(t_kwargs.pop("privileged_obs", False))
+    if blind_teacher and privileged:
+        raise UserError("--blind-teacher: the teacher must be a blind policy (a distilled "
+                        "student), not a run with privileged_obs: true")
+    if not blind_teacher and not privileged:
+        raise UserError("the teacher must be a run with env_kwargs privileged_obs: true (a "
+                        "blind teacher, e.g. a distilled student, needs --blind-teacher)")
     s_kwargs = dict(hp["env_kwargs"])
     if s_kwargs.get("privileged_obs") or s_kwargs.get("goal_obs"):
         raise UserError("the student reads the plain blind observation: leave privileged_obs "
@@ -177,10 +194,12 @@ def check_pair(teacher: ModelPolicy, env_id: str, hp: dict[str, Any]
         raise UserError(f"teacher and student env_kwargs differ (besides privileged_obs, "
                         f"history_len and obs_mode): {t_kwargs} vs {s_kwargs}")
     t_layout, s_layout = view_layout(t_view), view_layout(s_kwargs)
-    if s_layout.history_len < t_layout.history_len:
+    if blind_teacher:
+        pass
+    elif s_layout.history_len < t_layout.history_len:
         raise UserError(f"the student's history_len ({s_layout.history_len}) must be at least "
                         f"the teacher's ({t_layout.history_len})")
-    if t_layout.tactile and not s_layout.tactile:
+    elif t_layout.tactile and not s_layout.tactile:
         raise UserError("the teacher reads tactile entries (obs_mode proprio_tactile): so must "
                         "the student")
     t_wrappers = wrapper_list(teacher.env_wrapper)
@@ -211,19 +230,39 @@ def teacher_view(obs: dict[str, np.ndarray], teacher: ObservationLayout,
     shared.
     """
     blind = obs[BLIND_KEY]
-    same_frames = (teacher.history_len, teacher.frame_size) == (student.history_len,
-                                                                 student.frame_size)
-    if same_frames and teacher_size in (None, blind.shape[-1]):
-        return obs
+    view = blind_view(blind, teacher, student, teacher_size)
+    return obs if view is blind else {**obs, BLIND_KEY: view}
+
+
+def blind_view(blind: np.ndarray, view: ObservationLayout, source: ObservationLayout,
+               size: int | None = None) -> np.ndarray:
+    """The blind observation of layout ``view`` (blind size ``size``) contained in ``blind``,
+    one of layout ``source`` (:func:`teacher_view`'s rule; ``blind`` itself when they are the
+    same)."""
+    same_frames = (view.history_len, view.frame_size) == (source.history_len,
+                                                           source.frame_size)
+    if same_frames and size in (None, blind.shape[-1]):
+        return blind
     lead = blind.shape[:-1]
-    frames = blind[..., : student.history_size].reshape(*lead, student.history_len,
-                                                         student.frame_size)
-    kept = frames[..., : teacher.history_len, : teacher.frame_size].reshape(
-        *lead, teacher.history_size)
-    rest = blind[..., student.history_size:]
-    if teacher_size is not None:
-        rest = rest[..., : teacher_size - teacher.history_size]
-    return {**obs, BLIND_KEY: np.concatenate([kept, rest], axis=-1)}
+    frames = blind[..., : source.history_size].reshape(*lead, source.history_len,
+                                                        source.frame_size)
+    kept = frames[..., : view.history_len, : view.frame_size].reshape(*lead, view.history_size)
+    rest = blind[..., source.history_size:]
+    if size is not None:
+        rest = rest[..., : size - view.history_size]
+    return np.concatenate([kept, rest], axis=-1)
+
+
+def rollout_layout(student: ObservationLayout, teacher: ObservationLayout,
+                   blind_teacher: bool) -> ObservationLayout:
+    """The frame layout the DAgger rollouts run: the student's, or with a blind teacher the
+    union of both (the longer history; tactile entries if either reads them), from which each
+    policy reads its own view (:func:`blind_view`)."""
+    if not blind_teacher:
+        return student
+    tactile = student.tactile or teacher.tactile
+    return view_layout({"obs_mode": "proprio_tactile" if tactile else "proprio",
+                        "history_len": max(student.history_len, teacher.history_len)})
 
 
 def validate(model: Any, venv: Any, targets: Sequence[str], eval_seed: int,
@@ -386,9 +425,16 @@ def dagger(model: Any, teacher: ModelPolicy, env_id: str, kwargs: dict[str, Any]
     rng = np.random.default_rng(seed)
     s_layout = view_layout(kwargs)
     t_layout = view_layout(teacher_kwargs)
-    t_size = int(teacher.model.observation_space[BLIND_KEY].shape[0])
-    venv = make_sb3_vec_env(env_id, n_envs, seed, {**kwargs, "privileged_obs": True}, "native",
-                            env_wrapper=wrapper)
+    blind_teacher = schedule.blind_teacher
+    r_layout = rollout_layout(s_layout, t_layout, blind_teacher)
+    t_space = teacher.model.observation_space
+    t_size = int((t_space if blind_teacher else t_space[BLIND_KEY]).shape[0])
+    s_size = int(model.observation_space.shape[0])
+    r_kwargs = {**kwargs, "privileged_obs": True}
+    if blind_teacher:
+        r_kwargs.update(obs_mode="proprio_tactile" if r_layout.tactile else "proprio",
+                        history_len=r_layout.history_len)
+    venv = make_sb3_vec_env(env_id, n_envs, seed, r_kwargs, "native", env_wrapper=wrapper)
     policy = model.policy
     params = [*policy.mlp_extractor.policy_net.parameters(), *policy.action_net.parameters()]
     opt = torch.optim.Adam(params, lr=schedule.lr)
@@ -417,9 +463,11 @@ def dagger(model: Any, teacher: ModelPolicy, env_id: str, kwargs: dict[str, Any]
                 group["lr"] = lr_at(k, schedule.iterations, schedule.lr, schedule.lr_final)
             for _ in range(schedule.rollout_steps):
                 signals.check()
-                t_obs = teacher_view(obs, t_layout, s_layout, t_size)
+                t_obs: Any = teacher_view(obs, t_layout, r_layout, t_size)
+                if blind_teacher:
+                    t_obs = t_obs[BLIND_KEY]
                 t_act, _ = teacher.model.predict(teacher.normalize(t_obs), deterministic=True)
-                blind = obs[BLIND_KEY].astype(np.float32)
+                blind = blind_view(obs[BLIND_KEY], s_layout, r_layout, s_size).astype(np.float32)
                 s_act, _ = model.predict(blind, deterministic=True)
                 use_teacher = rng.random(n_envs) < beta
                 obs, _, dones, infos = venv.step(np.where(use_teacher[:, None], t_act, s_act))
@@ -504,11 +552,12 @@ def main(argv: Sequence[str] | None = None) -> Path:
     config = resolve_config(args, command="agents.distill")
     hp, rec = config.hyperparams, config.record
     teacher = ModelPolicy(args.teacher)
-    kwargs, teacher_kwargs = check_pair(teacher, args.env, hp)
+    kwargs, teacher_kwargs = check_pair(teacher, args.env, hp, args.dagger.blind_teacher)
     wrapper = config.env_wrapper
     rec.env_signature = probe_signature(args.env, kwargs, wrapper, args.seed)
     plain = {k: v for k, v in kwargs.items() if k not in VIEW_KEYS}
-    teacher_env = make_env(args.env, {**plain, **teacher_kwargs, "privileged_obs": True},
+    privileged = {} if args.dagger.blind_teacher else {"privileged_obs": True}
+    teacher_env = make_env(args.env, {**plain, **teacher_kwargs, **privileged},
                            teacher.env_wrapper)  # the spaces of the teacher's view
     teacher.check_env(teacher_env)
     teacher_env.close()

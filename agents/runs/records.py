@@ -50,8 +50,9 @@ class DaggerSchedule:
     ``max_samples`` (blind observation, label) pairs, oldest dropped first;
     ``latency_labels``: label with the teacher's action when the command takes effect
     (:class:`agents.distill.DelayedLabels`); ``select``: how validated iterations are ranked
-    (:data:`SELECT_RULES`). Range-checked on construction (UserError naming the command-line
-    flag)."""
+    (:data:`SELECT_RULES`); ``blind_teacher``: the teacher is a blind policy, not a
+    privileged one (:func:`agents.distill.rollout_layout`). Range-checked on construction
+    (UserError naming the command-line flag)."""
 
     iterations: int = 40
     rollout_steps: int = 50
@@ -64,6 +65,7 @@ class DaggerSchedule:
     max_samples: int = 2_000_000
     latency_labels: bool = False
     select: str = "success"
+    blind_teacher: bool = False
 
     def __post_init__(self) -> None:
         """Range checks (UserError on a bad value)."""

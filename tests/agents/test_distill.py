@@ -195,6 +195,43 @@ def test_tactile_student_feeds_the_teacher_the_proprio_entries_of_its_frames():
         o_tactile, o_plain = both[0].step(action)[0], both[1].step(action)[0]
 
 
+def test_blind_teacher_and_student_each_read_their_view_of_the_union_observation(tmp_path,
+                                                                                 teacher):
+    tactile = {**KWARGS, "obs_mode": "proprio_tactile", "history_len": 2}
+    joints = {**KWARGS, "history_len": 3}
+    blind_teacher = distill.main(_student_args(tmp_path, teacher, env_kwargs=tactile))
+    # the union of a 2-frame tactile and a 3-frame joint-only layout: 3 tactile frames
+    union = distill.rollout_layout(distill.view_layout(joints), distill.view_layout(tactile),
+                                   True)
+    assert (union.tactile, union.history_len) == (True, 3)
+    own = distill.view_layout(joints)
+    assert distill.rollout_layout(own, distill.view_layout(tactile), False) is own
+    # each view of the union env's observation is that policy's own env's observation of the
+    # same state (same seed, same actions; ideal sensors)
+    kws = ({**KWARGS, "obs_mode": "proprio_tactile", "history_len": 3}, tactile, joints)
+    envs = [make_sb3_vec_env(ENV_ID, 2, 5, kw, "native", env_wrapper=WRAPPER) for kw in kws]
+    obs = [env.reset() for env in envs]
+    for _ in range(3):
+        for k in (1, 2):
+            view = distill.blind_view(obs[0], distill.view_layout(kws[k]), union,
+                                      obs[k].shape[-1])
+            np.testing.assert_array_equal(view, obs[k])
+        action = np.full((2, 2), 0.25, np.float32)
+        obs = [env.step(action)[0] for env in envs]
+    # the run: a joint-only student of the tactile (blind) teacher
+    args = _student_args(tmp_path, blind_teacher, env_kwargs=joints)
+    with pytest.raises(UserError, match="needs --blind-teacher"):
+        distill.main(args)
+    with pytest.raises(UserError, match="must be a blind policy"):
+        distill.main(_student_args(tmp_path, teacher, env_kwargs=joints) + ["--blind-teacher"])
+    run = distill.main(args + ["--blind-teacher"])
+    student = ModelPolicy(run)
+    assert student.run.record["dagger"]["blind_teacher"] is True
+    assert student.env_kwargs["history_len"] == 3 and "obs_mode" not in student.env_kwargs
+    assert student.model.observation_space.shape[0] == 3 * 8 + 1 + 1  # frames, goal, time
+    assert list(np.load(run / "dagger_curve.npz")["iteration"]) == [0, 1, 2]
+
+
 def test_step_size_goes_linearly_from_lr_to_lr_final():
     steps = [distill.lr_at(k, 5, 1e-3, 1e-4) for k in range(5)]
     np.testing.assert_allclose(steps, [1e-3, 7.75e-4, 5.5e-4, 3.25e-4, 1e-4])
