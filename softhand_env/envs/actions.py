@@ -25,6 +25,7 @@ from gymnasium import spaces
 from numba import njit
 
 from softhand_env.envs.options import KEYWORDS, check_keyword
+from softhand_env.physics import jit_cache  # noqa: F401  (the package stamp on cached kernels)
 
 ACTION_MODES = KEYWORDS["action_mode"].choices
 

@@ -31,7 +31,11 @@ from numba.experimental import structref
 from softhand_env.envs.actions import _map_setpoints, delay_setpoints
 from softhand_env.envs.observation import observe_rows
 from softhand_env.envs.windows import _account
-from softhand_env.physics import friction, validity
+from softhand_env.physics import (
+    friction,
+    jit_cache,  # noqa: F401  (the package stamp on cached kernels)
+    validity,
+)
 from softhand_env.physics.hand import (
     READ_SETPOINT,
     READ_TORQUE,

@@ -31,6 +31,7 @@ from gymnasium import spaces
 from numba import njit
 
 from softhand_env.envs.options import KEYWORDS, check_keyword
+from softhand_env.physics import jit_cache  # noqa: F401  (the package stamp on cached kernels)
 
 #: Angles (rad) are divided by this (30 deg).
 ANGLE_SCALE = math.radians(30.0)

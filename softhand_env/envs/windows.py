@@ -26,6 +26,7 @@ from typing import NamedTuple
 import numpy as np
 from numba import njit
 
+from softhand_env.physics import jit_cache  # noqa: F401  (the package stamp on cached kernels)
 from softhand_env.physics.hand import HandPhysics
 
 

@@ -22,6 +22,7 @@ import math
 
 from numba import njit
 
+from softhand_env.physics import jit_cache  # noqa: F401  (the package stamp on cached kernels)
 from softhand_env.physics.kernel import (
     FLAG_BASE,
     FLAG_CONSTRAINT,

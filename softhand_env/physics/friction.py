@@ -36,6 +36,8 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
+from softhand_env.physics import jit_cache  # noqa: F401  (the package stamp on cached kernels)
+
 
 def _split(impulse: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     imp = np.asarray(impulse, dtype=np.float64)

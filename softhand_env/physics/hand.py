@@ -24,7 +24,12 @@ from typing import Any, NamedTuple
 import numpy as np
 from numba import njit
 
-from softhand_env.physics import friction, kernel, rosenbrock
+from softhand_env.physics import (
+    friction,
+    jit_cache,  # noqa: F401  (the package stamp on cached kernels)
+    kernel,
+    rosenbrock,
+)
 from softhand_env.physics.dispatch import ParallelChoice
 from softhand_env.physics.failure import REASONS, classify
 from softhand_env.physics.model import (

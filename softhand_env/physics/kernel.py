@@ -71,6 +71,7 @@ import math
 import numpy as np
 from numba import njit, prange
 
+from softhand_env.physics import jit_cache  # noqa: F401  (the package stamp on cached kernels)
 from softhand_env.physics.contact import beyond_base
 from softhand_env.physics.model import (
     _FASTMATH,

@@ -55,6 +55,7 @@ import math
 import numpy as np
 from numba import njit
 
+from softhand_env.physics import jit_cache  # noqa: F401  (the package stamp on cached kernels)
 from softhand_env.physics.params import HandParams
 
 #: Number of generalized coordinates.

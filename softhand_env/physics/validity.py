@@ -25,6 +25,7 @@ import math
 import numpy as np
 from numba import njit
 
+from softhand_env.physics import jit_cache  # noqa: F401  (the package stamp on cached kernels)
 from softhand_env.physics.model import DN_1, TH_1, TH_OBJ
 from softhand_env.physics.params import HandParams
 

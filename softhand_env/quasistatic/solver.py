@@ -23,6 +23,7 @@ import numpy as np
 from numba import njit
 from numpy.typing import ArrayLike
 
+from softhand_env.physics import jit_cache  # noqa: F401  (the package stamp on cached kernels)
 from softhand_env.physics.params import HandParams, load_hand_params
 
 #: Default finger-angle increment (rad) of the handling process: 0.1 deg.
