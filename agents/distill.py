@@ -194,12 +194,10 @@ def check_pair(teacher: ModelPolicy, env_id: str, hp: dict[str, Any],
         raise UserError(f"teacher and student env_kwargs differ (besides privileged_obs, "
                         f"history_len and obs_mode): {t_kwargs} vs {s_kwargs}")
     t_layout, s_layout = view_layout(t_view), view_layout(s_kwargs)
-    if blind_teacher:
-        pass
-    elif s_layout.history_len < t_layout.history_len:
+    if not blind_teacher and s_layout.history_len < t_layout.history_len:
         raise UserError(f"the student's history_len ({s_layout.history_len}) must be at least "
                         f"the teacher's ({t_layout.history_len})")
-    elif t_layout.tactile and not s_layout.tactile:
+    if not blind_teacher and t_layout.tactile and not s_layout.tactile:
         raise UserError("the teacher reads tactile entries (obs_mode proprio_tactile): so must "
                         "the student")
     t_wrappers = wrapper_list(teacher.env_wrapper)
