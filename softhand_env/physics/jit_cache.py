@@ -11,8 +11,9 @@ them recompiles all of them. Paths, file names and everything else of the cache 
 Importing this module installs the stamp (:func:`install`); each module in
 :data:`JIT_MODULES` imports it before its first decorator, since numba chooses a function's
 cache when the decorator runs. Installing does nothing where numba's cache internals differ
-from those this was written against (numba 0.58-0.68), or when ``NUMBA_CACHE_LOCATOR_CLASSES``
-chooses the cache classes: caching then works as numba's default.
+from those this was written against (numba 0.68's ``CacheImpl._locator_classes``; earlier
+releases name the class ``_CacheImpl``), or when ``NUMBA_CACHE_LOCATOR_CLASSES`` chooses the
+cache classes: caching then works as numba's default.
 """
 
 from __future__ import annotations
