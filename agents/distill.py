@@ -258,8 +258,8 @@ def rollout_layout(student: ObservationLayout, teacher: ObservationLayout,
     policy reads its own view (:func:`blind_view`)."""
     if not blind_teacher:
         return student
-    tactile = student.tactile or teacher.tactile
-    return view_layout({"obs_mode": "proprio_tactile" if tactile else "proprio",
+    frames = student if student.tactile or not teacher.tactile else teacher
+    return view_layout({"obs_mode": frames.obs_mode,
                         "history_len": max(student.history_len, teacher.history_len)})
 
 
@@ -430,8 +430,7 @@ def dagger(model: Any, teacher: ModelPolicy, env_id: str, kwargs: dict[str, Any]
     s_size = int(model.observation_space.shape[0])
     r_kwargs = {**kwargs, "privileged_obs": True}
     if blind_teacher:
-        r_kwargs.update(obs_mode="proprio_tactile" if r_layout.tactile else "proprio",
-                        history_len=r_layout.history_len)
+        r_kwargs.update(obs_mode=r_layout.obs_mode, history_len=r_layout.history_len)
     venv = make_sb3_vec_env(env_id, n_envs, seed, r_kwargs, "native", env_wrapper=wrapper)
     policy = model.policy
     params = [*policy.mlp_extractor.policy_net.parameters(), *policy.action_net.parameters()]

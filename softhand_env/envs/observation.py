@@ -123,6 +123,8 @@ class ObservationLayout:
     def __init__(self, obs_mode: str, history_len: int, goal_names: tuple[str, ...]):
         check_keyword("obs_mode", obs_mode)
         check_keyword("history_len", history_len)
+        #: The ``obs_mode`` keyword the layout was built from.
+        self.obs_mode = obs_mode
         self.tactile = obs_mode == "proprio_tactile"
         self.history_len = int(history_len)
         frame = PROPRIO_NAMES + (TACTILE_NAMES if self.tactile else ())

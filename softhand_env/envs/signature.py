@@ -152,7 +152,7 @@ def env_signature(env: Any) -> dict[str, Any]:
         "env_id": env_id,
         "version": softhand_env.__version__,
         "task": cfg.task.name,
-        "obs_mode": "proprio_tactile" if cfg.layout.tactile else "proprio",
+        "obs_mode": cfg.layout.obs_mode,
         "history_len": cfg.layout.history_len,
         "observation_shape": [cfg.layout.size],
         "action_mode": actions.mode,
