@@ -87,8 +87,9 @@ V1_KWARGS: dict[str, Any] = {
 }
 
 #: Hand parameters of every ``-v1`` id (merged into the id's ``hand_overrides``): the ROS2
-#: integrator at 1 ms steps, equal to RK4 at 0.1 ms within 0.03 mm / 0.02 deg on the paper's
-#: motions (docs/integrator.md). A ``hand_overrides`` given to ``gym.make`` replaces the
+#: integrator at its default schedule (1 ms steps after each call's start, then up to 2 ms),
+#: equal to RK4 at 0.1 ms within 0.04 mm / 0.08 deg on the paper's motions
+#: (docs/integrator.md). A ``hand_overrides`` given to ``gym.make`` replaces the
 #: registered one as a whole, so pass ``integrator`` with it to keep ROS2.
 V1_HAND_OVERRIDES: dict[str, Any] = {
     "integrator": "ros2",

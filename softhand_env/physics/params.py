@@ -37,7 +37,9 @@ YAML key             field       meaning (SI unit of the field)
                                  scheme) or ``"ros2"`` (the linearly implicit Rosenbrock
                                  method of :mod:`softhand_env.physics.rosenbrock` at
                                  ``ros2_dt``)
-``ros2_dt_ms``       ros2_dt     ROS2 step (s) (default 1 ms; used by ``integrator: ros2``)
+``ros2_dt_ms``       ros2_dt     ROS2 step (s) after each call's start (default 1 ms; the
+                                 rest of a call takes steps of up to twice it; used by
+                                 ``integrator: ros2``)
 ``cross_term``       cross_term  sign of the d_n^2 d_t tan(theta_p) term: ``"uniform"`` (-1
                                  for both fingers, default, mirror-symmetric) or
                                  ``"printed"`` ((-1)^i as printed in Eq 5.5)

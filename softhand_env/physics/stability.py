@@ -28,19 +28,19 @@ eigenvector (angles weighted by the finger length to compare them with lengths);
 modes (-alpha, double, and -beta) are reported from their exact values.
 
 Under ``integrator="ros2"`` (:mod:`softhand_env.physics.rosenbrock`) the check is the same in
-spirit but exact for the method as implemented: the linearised map of one ROS2 step of
-(1 + STEP_MARGIN) ``ros2_dt`` (central differences of :func:`.rosenbrock.ros2_step` at the same
-probe states; it contains the method's own matrix W, not only the model's Jacobian) must not
-amplify any mode, |mu| <= exp(h max Re lambda) for every eigenvalue mu of the 20 x 20 step
-matrix, where lambda are the eigenvalues of the model's own linearisation there (their
-largest real part is ~0: the neutral object mode), with a 1e-6 relative tolerance for the
-difference quotients. ROS2 with
-the exact Jacobian is L-stable (:func:`ros2_amplification` is at most 1 on the whole left half
-plane and 0 at infinity); the check guards the approximation in W. Each step-matrix eigenvalue
-is reported as the rate lambda = log(mu) / h it integrates (``Mode.eigenvalue``) with
-``amplification = |mu|``. :func:`check_stability`, :func:`stability_message`,
-:func:`warn_if_unstable` and :func:`check_randomization_ranges` use the check of
-``params.integrator``.
+spirit but exact for the method as implemented: the linearised map of one ROS2 step of (1 +
+STEP_MARGIN) times each step size the schedule takes after its ramp, ``ros2_dt`` and twice it
+(:func:`.rosenbrock.largest_step`) (central differences of :func:`.rosenbrock.ros2_step` at the
+same probe states; it contains the method's own matrix W, not only the model's Jacobian) must
+not amplify any mode, |mu| <= exp(h max Re lambda) for every eigenvalue mu of the 20 x 20 step
+matrix, where lambda are the eigenvalues of the model's own linearisation there (their largest
+real part is ~0: the neutral object mode), with a 1e-6 relative tolerance for the difference
+quotients. ROS2 with the exact Jacobian is L-stable (:func:`ros2_amplification` is at most 1 on
+the whole left half plane and 0 at infinity); the check guards the approximation in W. Each
+step-matrix eigenvalue is reported as the rate lambda = log(mu) / h it integrates
+(``Mode.eigenvalue``) with ``amplification = |mu|``. :func:`check_stability`,
+:func:`stability_message`, :func:`warn_if_unstable` and :func:`check_randomization_ranges`
+use the check of ``params.integrator``.
 """
 
 from __future__ import annotations
@@ -259,25 +259,29 @@ def ros2_step_matrix(params: HandParams, y: np.ndarray, u: np.ndarray, h: float)
 
 @functools.lru_cache(maxsize=512)
 def ros2_modes(params: HandParams) -> dict[str, Mode]:
-    """Least stable eigenvalue of each mode class of the ROS2 step map at
-    (1 + STEP_MARGIN) ``params.ros2_dt`` over :func:`probe_states` (cached; module doc)."""
-    h = params.ros2_dt * (1.0 + STEP_MARGIN)
+    """Least stable eigenvalue of each mode class of the ROS2 step map at (1 + STEP_MARGIN)
+    times each step size a call takes after its ramp (``params.ros2_dt`` and the largest,
+    :func:`.rosenbrock.largest_step`) over :func:`probe_states` (cached; module doc)."""
+    from softhand_env.physics.rosenbrock import largest_step
+
     modes: dict[str, Mode] = {}
     for y, u in probe_states(params):
         # the growth the model itself has at the probe state (a neutral mode: ~0)
         growth = max(0.0, float(np.linalg.eigvals(jacobian(params, y, u)).real.max()))
-        bound = math.exp(growth * h) * (1.0 + ROS2_TOLERANCE)
-        mus, vecs = np.linalg.eig(ros2_step_matrix(params, y, u, h))
-        for k, mu in enumerate(mus):
-            if not np.isfinite(mu):
-                continue
-            amp = float(abs(mu))
-            lam = complex(np.log(complex(mu)) / h) if amp > 0.0 else complex(-np.inf)
-            mode = Mode(_mode_name(vecs[:, k], params), lam, amp, abs(lam) * params.ros2_dt,
-                        bound)
-            old = modes.get(mode.name)
-            if old is None or mode.amplification > old.amplification:
-                modes[mode.name] = mode
+        for step in (params.ros2_dt, largest_step(params.ros2_dt)):
+            h = step * (1.0 + STEP_MARGIN)
+            bound = math.exp(growth * h) * (1.0 + ROS2_TOLERANCE)
+            mus, vecs = np.linalg.eig(ros2_step_matrix(params, y, u, h))
+            for k, mu in enumerate(mus):
+                if not np.isfinite(mu):
+                    continue
+                amp = float(abs(mu))
+                lam = complex(np.log(complex(mu)) / h) if amp > 0.0 else complex(-np.inf)
+                mode = Mode(_mode_name(vecs[:, k], params), lam, amp, abs(lam) * step, bound)
+                old = modes.get(mode.name)
+                if old is None or mode.amplification / bound > old.amplification / (
+                        old.bound or 1.0):
+                    modes[mode.name] = mode
     return modes
 
 
@@ -311,9 +315,12 @@ def stability_message(params: HandParams) -> str | None:
     if not modes:
         return None
     if params.integrator == "ros2":
+        from softhand_env.physics.rosenbrock import largest_step
+
         detail = ", ".join(f"{m.name}: |mu| = {m.amplification:.4f}" for m in modes)
         return (
-            f"ROS2 step ros2_dt = {params.ros2_dt:g} s amplifies the {detail} (linearised "
+            f"ROS2 step ros2_dt = {params.ros2_dt:g} s (steps up to "
+            f"{largest_step(params.ros2_dt):g} s) amplifies the {detail} (linearised "
             f"step map, {STEP_MARGIN:.0%} margin); expect divergence (reduce ros2_dt)"
         )
     detail = ", ".join(f"{m.name}: |lambda| dt = {m.hdt:.2f}" for m in modes)

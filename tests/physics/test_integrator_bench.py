@@ -33,7 +33,7 @@ def test_integrator_speed_ratios():
 
 def test_rhs_counts_of_the_comparison():
     rk4, fast = bench_env.rhs_per_simulated_second()
-    assert rk4 == pytest.approx(801 / 0.02) and fast == pytest.approx(47 / 0.02)
+    assert rk4 == pytest.approx(801 / 0.02) and fast == pytest.approx(31 / 0.02)
 
 
 def test_paired_figure_statistics():
