@@ -224,7 +224,6 @@ class EpisodeBatch:
         self.reason[i] = None
         if self.windows is not None:
             self.windows.restart(i)
-        self._refresh_goal_columns()
         if self.sensing is not None:  # after every draw of start_episode
             self.sensing.start(i, _generator((rng,), 0))
 
@@ -235,6 +234,7 @@ class EpisodeBatch:
         started: the first frame in every history slot (noise drawn once from ``rngs[i]``),
         then the goal."""
         p = self.physics
+        self._refresh_goal_columns()  # the goals start() drew
         r = self._r = p.readouts()
         self._refresh_validated()
         rows = np.flatnonzero(mask)
@@ -247,16 +247,15 @@ class EpisodeBatch:
         layout = self.cfg.layout
         f, h = layout.frame_size, layout.history_size
         frames = self._frames(rows=rows, rngs=rngs, first=True)
-        goal_obs = self.task.goal_observation(self.goal[rows])
+        obs = self.obs
+        obs[rows, h:] = self.task.goal_observation(self.goal[rows])
+        obs[rows, :f] = frames[rows]
         noise = self.cfg.randomization.obs_noise
-        for k, i in enumerate(rows):
-            out = self.obs[i]
-            out[h:] = goal_obs[k]
-            out[:f] = frames[i]
-            if noise > 0:
-                add_frame_noise(out[:f], noise, _generator(rngs, i))
-            for k in range(1, layout.history_len):
-                out[k * f : (k + 1) * f] = out[:f]
+        if noise > 0:  # row by row: each from its environment's generator
+            for i in rows:
+                add_frame_noise(obs[i, :f], noise, _generator(rngs, i))
+        for k in range(1, layout.history_len):
+            obs[rows, k * f : (k + 1) * f] = obs[rows, :f]
 
     def _evaluate(
         self, pose: np.ndarray, ctrl: np.ndarray, failed: np.ndarray, grasped: np.ndarray,

@@ -68,6 +68,7 @@ another fingertip/object pair. The paper's motions need at most 0.54 (see the RE
 
 from __future__ import annotations
 
+import copy
 import dataclasses
 import math
 import sys
@@ -124,18 +125,11 @@ class HandParams:
 
     def __post_init__(self) -> None:
         for f in dataclasses.fields(self):
-            value = getattr(self, f.name)
-            if f.name in _CHOICES:
-                allowed = _CHOICES[f.name]
-                if not (isinstance(value, str) and value in allowed):
-                    raise ValueError(f"{f.name} must be one of {allowed} (got {value!r})")
-                continue
-            if f.name == "M_deform" and value is None:
-                continue
-            if not _in_range(f.name, value):
-                raise ValueError(
-                    f"{f.name} must be a real number in {range_text(f.name)} (got {value!r})"
-                )
+            _check_field(f.name, getattr(self, f.name))
+        self._check_width()
+
+    def _check_width(self) -> None:
+        """Refuse an object too wide for the hand (the one check across fields)."""
         if self.W_obj / 2 + self.a > self.W_fi - self.d_fi + self.L * 0.5:
             raise ValueError(
                 "W_obj is too wide for the hand: W_obj/2 + a must be below W_fi - d_fi + L/2 "
@@ -157,11 +151,20 @@ class HandParams:
 
         Raises ``ValueError`` for an unknown field or a value out of range (naming the field).
         """
-        unknown = sorted(set(changes) - {f.name for f in dataclasses.fields(self)})
+        unknown = sorted(set(changes) - _FIELD_NAMES)
         if unknown:
             fields = ", ".join(f.name for f in dataclasses.fields(self))
             raise ValueError(f"unknown HandParams field(s) {unknown}; fields: {fields}")
-        return dataclasses.replace(self, **changes)
+        # the same checks as construction, on the changed fields only (the others were
+        # checked when this instance was built): a randomised episode start derives two
+        # variants, and checking all 23 fields cost about 40 us each
+        for name, value in changes.items():
+            _check_field(name, value)
+        new = copy.copy(self)
+        for name, value in changes.items():
+            object.__setattr__(new, name, value)
+        new._check_width()
+        return new
 
     def to_yaml_dict(self) -> dict[str, Any]:
         """The YAML form (unit-named keys), inverse of :func:`hand_params_from_dict`."""
@@ -228,6 +231,23 @@ YAML_KEYS: dict[str, tuple[str, float | None]] = {
     "ros2_dt_ms": ("ros2_dt", 1e-3),
 }
 _FIELD_TO_KEY = {field: key for key, (field, _) in YAML_KEYS.items()}
+
+
+_FIELD_NAMES = frozenset(f.name for f in dataclasses.fields(HandParams))
+
+
+def _check_field(name: str, value: Any) -> None:
+    """Raise ``ValueError`` naming field ``name`` if ``value`` is not one of its choices or
+    not a real number in its range."""
+    if name in _CHOICES:
+        allowed = _CHOICES[name]
+        if not (isinstance(value, str) and value in allowed):
+            raise ValueError(f"{name} must be one of {allowed} (got {value!r})")
+        return
+    if name == "M_deform" and value is None:
+        return
+    if not _in_range(name, value):
+        raise ValueError(f"{name} must be a real number in {range_text(name)} (got {value!r})")
 
 
 def is_finite_real(value: Any) -> bool:
