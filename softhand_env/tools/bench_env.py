@@ -225,8 +225,8 @@ def _print_comparison(steps: int, n_vec: int, repeats: int, mujoco_steps: int) -
     from softhand_env.tools import bench_mujoco
 
     print(f"integrators: RK4 (paper, 0.1 ms; Random ids 0.05 ms) vs ROS2 "
-          f"(hand_overrides={FAST}, 1 ms); {repeats} paired runs, medians; ratio min / "
-          f"median / max over the pairs")
+          f"(hand_overrides={FAST}, 1 ms then up to 2 ms); {repeats} paired runs, medians; "
+          f"ratio min / median / max over the pairs")
 
     def show(name: str, fig: Figure) -> None:
         print(f"{name:<48}{'rk4':>5}{fig.rk4:>14,.0f}{'fast':>6}{fig.fast:>14,.0f}", flush=True)
