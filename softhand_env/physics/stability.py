@@ -265,6 +265,7 @@ def ros2_modes(params: HandParams) -> dict[str, Mode]:
     from softhand_env.physics.rosenbrock import largest_step
 
     modes: dict[str, Mode] = {}
+    excess: dict[str, float] = {}  # |mu| / bound of each kept mode (bounds differ by step)
     for y, u in probe_states(params):
         # the growth the model itself has at the probe state (a neutral mode: ~0)
         growth = max(0.0, float(np.linalg.eigvals(jacobian(params, y, u)).real.max()))
@@ -278,10 +279,9 @@ def ros2_modes(params: HandParams) -> dict[str, Mode]:
                 amp = float(abs(mu))
                 lam = complex(np.log(complex(mu)) / h) if amp > 0.0 else complex(-np.inf)
                 mode = Mode(_mode_name(vecs[:, k], params), lam, amp, abs(lam) * step, bound)
-                old = modes.get(mode.name)
-                if old is None or mode.amplification / bound > old.amplification / (
-                        old.bound or 1.0):
+                if amp / bound > excess.get(mode.name, -1.0):
                     modes[mode.name] = mode
+                    excess[mode.name] = amp / bound
     return modes
 
 
