@@ -69,6 +69,7 @@ class ParallelChoice:
         self._interval = refresh
         self._since = 0
         self._probe = False
+        self._preferred = False  # preferred(), updated by every timed record
 
     def next(self) -> bool:
         """True if the next call should run in parallel."""
@@ -86,6 +87,9 @@ class ParallelChoice:
     def preferred(self) -> bool:
         """The mode with the smaller median time per hand so far (serial on a tie or while a
         mode has no timed call)."""
+        return self._preferred
+
+    def _median_choice(self) -> bool:
         serial, parallel = self._times
         if not serial or not parallel:
             return False
@@ -97,9 +101,10 @@ class ParallelChoice:
         mode = int(bool(parallel))
         self._seen[mode] += 1
         if hands >= 1 and self._seen[mode] > 1:  # the first call of a mode pays its start
-            before = self.preferred()
+            before = self._preferred
             self._times[mode].append(seconds / hands)
-            if self.preferred() != before:  # the load changed: probe soon again
+            self._preferred = self._median_choice()
+            if self._preferred != before:  # the load changed: probe soon again
                 self._interval = self.refresh
                 self._since = 0
             elif self._probe:  # a probe confirmed the choice: probe less often

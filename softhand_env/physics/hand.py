@@ -44,6 +44,7 @@ from softhand_env.physics.model import (
     csm_rhs,
     initial_state,
     pack_params,
+    pid_torques,
     pid_torques_batch,
     with_stop_limits,
 )
@@ -235,6 +236,20 @@ def _set_setpoints(SRC, U):
 
 
 @njit(cache=True)
+def _prepare_step(SRC, U, Y, Y_PREV, FLAGS, DIAG, SKIP):
+    """Before a batched kernel call, in one compiled call: :func:`_set_setpoints` from SRC
+    (returns False, with nothing changed, if SRC is not finite), the states Y into Y_PREV
+    (the rollback), FLAGS 0 (``FLAG_SKIP`` for the hands of SKIP, bool (N,)), DIAG 0."""
+    if not _set_setpoints(SRC, U):
+        return False
+    Y_PREV[:] = Y
+    for s in range(FLAGS.shape[0]):
+        FLAGS[s] = kernel.FLAG_SKIP if SKIP[s] else 0
+    DIAG[:] = 0.0
+    return True
+
+
+@njit(cache=True)
 def _step_on_this_thread(SRC, Y, U, PRM, TIME, n, ros2, H, ch_limit, dn_limit, base_limit,
                          FLAGS, DIAG, FAILED, GRASPED, REASON):
     """One step of hands none of which is skipped, on the calling thread, in one compiled call
@@ -344,6 +359,17 @@ def fill_readouts(Y, U, PRM, READ):
     pid_torques_batch(Y, U, PRM, READ[:, READ_TORQUE : READ_TORQUE + 2])
 
 
+@njit(cache=True)
+def fill_readout_rows(Y, U, PRM, ROWS, READ):
+    """:func:`fill_readouts` of the hands ROWS (int (K,)) only; the other rows of READ are
+    left as they are."""
+    for k in range(ROWS.shape[0]):
+        s = ROWS[k]
+        READ[s, :NY] = Y[s]
+        READ[s, READ_SETPOINT : READ_SETPOINT + 2] = U[s]
+        pid_torques(Y[s], U[s], PRM[s], READ[s, READ_TORQUE : READ_TORQUE + 2])
+
+
 class HandPhysics:
     """States, integration, failure classification and read-outs of N hands (chapter-5 model).
 
@@ -411,6 +437,8 @@ class HandPhysics:
         self._y = np.tile(initial_state(params), (n, 1))
         self._u = self._y[:, TH_1 : TH_1 + 2].copy()
         self._time = np.zeros(n)
+        self._y_prev = np.empty_like(self._y)  # the states before a batched step (rollback)
+        self._no_skip = np.zeros(n, dtype=bool)
         self._check_stability = bool(check_stability)
         # serial or parallel batched calls, by measured time (results the same either way),
         # for at least two blocks of lanes under ROS2 (one block does not share), 2 hands RK4;
@@ -494,11 +522,25 @@ class HandPhysics:
     ) -> None:
         """Start hand ``index`` afresh at ``state`` (20,) with set-points ``setpoint`` (2,) (rad);
         ``params`` (optional) replace its parameters (packed here)."""
-        if params is not None and params is not self._params[index]:
-            self.set_params(params, index)
-        self._y[index] = state
-        self._u[index] = setpoint
-        self._time[index] = 0.0
+        self.reset_hands(np.array([index]), np.asarray(state)[None], np.asarray(setpoint)[None],
+                         [self._params[index] if params is None else params])
+
+    def reset_hands(
+        self,
+        rows: np.ndarray,
+        states: np.ndarray,
+        setpoints: np.ndarray,
+        params: list[HandParams],
+    ) -> None:
+        """:meth:`reset_hand` of the hands ``rows`` (int (K,)) at once: states (K, 20),
+        set-points (K, 2) (rad), one :class:`HandParams` per hand (packed where they differ
+        from the hand's present ones)."""
+        for i, prm in zip(rows.tolist(), params, strict=True):
+            if prm is not self._params[i]:
+                self.set_params(prm, i)
+        self._y[rows] = states
+        self._u[rows] = setpoints
+        self._time[rows] = 0.0
 
     def set_params(self, params: HandParams, index: int | None = None) -> None:
         """Change the parameters of hand ``index`` (all hands if None); states are kept."""
@@ -594,6 +636,9 @@ class HandPhysics:
         n = int(n_substeps)
         if n < 1:
             raise ValueError(f"n_substeps must be >= 1 (got {n_substeps!r})")
+        if skip is not None and not (isinstance(skip, np.ndarray) and skip.dtype == np.bool_
+                                     and skip.shape == (self._n,)):
+            raise ValueError(f"skip must be a bool array of shape ({self._n},)")
         status = StepStatus.empty(self._n) if out is None else out
         flags, diag = status._flags, status._diag
         ros2 = self._integrator == "ros2"
@@ -604,13 +649,10 @@ class HandPhysics:
                 flags, diag, status._failed, status._grasped, status._reason,
             )
         else:
-            ok = _set_setpoints(u, self._u)
+            y_prev = self._y_prev
+            ok = _prepare_step(u, self._u, self._y, y_prev, flags, diag,
+                               self._no_skip if skip is None else skip)
             if ok:
-                y_prev = self._y.copy()
-                flags[:] = 0
-                if skip is not None:
-                    flags[skip] = kernel.FLAG_SKIP
-                diag[:] = 0.0
                 choice = self._dispatch
                 parallel = choice is not None and choice.next()
                 t0 = time.perf_counter()
@@ -667,10 +709,19 @@ class HandPhysics:
 
     def readouts(self) -> HandReadouts:
         """Every named read-out of every hand at once, with the hand axis (N, ...) also for a
-        one-hand physics (one copy of the states; what the environments read per step)."""
+        one-hand physics (one copy of the states)."""
         read = np.empty((self._n, READ_SIZE))
         fill_readouts(self._y, self._u, self._prm, read)
         return HandReadouts.of_block(read)
+
+    def read_into(self, read: np.ndarray, rows: np.ndarray | None = None) -> None:
+        """Write the read-outs of every hand, or of the hands ``rows`` (int (K,)), into the
+        block ``read`` (N, :data:`READ_SIZE`, float64; :meth:`HandReadouts.of_block` names
+        its columns): what the environments read per step, without a fresh block."""
+        if rows is None:
+            fill_readouts(self._y, self._u, self._prm, read)
+        else:
+            fill_readout_rows(self._y, self._u, self._prm, rows, read)
 
     def step_arrays(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """The arrays a compiled step works on in place (:func:`_step_on_this_thread`): the

@@ -68,7 +68,6 @@ another fingertip/object pair. The paper's motions need at most 0.54 (see the RE
 
 from __future__ import annotations
 
-import copy
 import dataclasses
 import math
 import sys
@@ -128,6 +127,22 @@ class HandParams:
             _check_field(f.name, getattr(self, f.name))
         self._check_width()
 
+    def __hash__(self) -> int:
+        # the fields' hash (as the dataclass would compute it), computed once: parameters
+        # are dictionary keys of the grasp-state cache at every episode start
+        h = self.__dict__.get("_hash")
+        if h is None:
+            h = hash(tuple(getattr(self, name) for name in _FIELD_ORDER))
+            object.__setattr__(self, "_hash", h)
+        return h
+
+    def __getstate__(self) -> dict[str, Any]:
+        # without the cached hash: str hashes differ between processes, and replace()'s
+        # copy changes fields
+        state = self.__dict__.copy()
+        state.pop("_hash", None)
+        return state
+
     def _check_width(self) -> None:
         """Refuse an object too wide for the hand (the one check across fields)."""
         if self.W_obj / 2 + self.a > self.W_fi - self.d_fi + self.L * 0.5:
@@ -160,9 +175,11 @@ class HandParams:
         # variants, and checking all 23 fields cost about 40 us each
         for name, value in changes.items():
             _check_field(name, value)
-        new = copy.copy(self)
-        for name, value in changes.items():
-            object.__setattr__(new, name, value)
+        new = object.__new__(HandParams)
+        state = new.__dict__  # an immutable instance: its fields are written here only
+        state.update(self.__dict__)
+        state.pop("_hash", None)
+        state.update(changes)
         new._check_width()
         return new
 
@@ -233,7 +250,8 @@ YAML_KEYS: dict[str, tuple[str, float | None]] = {
 _FIELD_TO_KEY = {field: key for key, (field, _) in YAML_KEYS.items()}
 
 
-_FIELD_NAMES = frozenset(f.name for f in dataclasses.fields(HandParams))
+_FIELD_ORDER = tuple(f.name for f in dataclasses.fields(HandParams))
+_FIELD_NAMES = frozenset(_FIELD_ORDER)
 
 
 def _check_field(name: str, value: Any) -> None:
@@ -246,6 +264,10 @@ def _check_field(name: str, value: Any) -> None:
         return
     if name == "M_deform" and value is None:
         return
+    if type(value) is float:  # the common case, as _in_range judges it, without its calls
+        low, high, closed_low = _RANGES[name]
+        if (value >= low if closed_low else value > low) and value <= high:
+            return
     if not _in_range(name, value):
         raise ValueError(f"{name} must be a real number in {range_text(name)} (got {value!r})")
 

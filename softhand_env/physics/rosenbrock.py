@@ -650,7 +650,9 @@ def _advance_block(Y, U, PRM, n, H, ch_limit, DIAG, FLAGS, systems):
     CHM = np.zeros(LANES)
     CNM = np.zeros(LANES)
     live = np.zeros(LANES, dtype=np.bool_)
-    for l in range(LANES):
+    # every lane when the flat loops of _axpby run over whole rows (nl > 2), else the nl lanes
+    # the lane loops read
+    for l in range(LANES if nl > 2 else nl):
         s = systems[min(l, m - 1)]
         live[l] = l < m
         for j in range(NY):
