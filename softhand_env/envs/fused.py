@@ -39,11 +39,13 @@ from softhand_env.physics import (
 from softhand_env.physics.hand import (
     READ_SETPOINT,
     READ_TORQUE,
+    _constraint_errors,
     _step_on_this_thread,
+    fill_readout_rows,
     fill_readouts,
 )
 from softhand_env.physics.kernel import IMPULSE_OFFSET
-from softhand_env.physics.model import DN_1, DT_1, NQ, TH_1, X_OBJ
+from softhand_env.physics.model import DN_1, DN_2, DT_1, NQ, TH_1, X_OBJ
 
 
 @njit(cache=True)
@@ -132,6 +134,31 @@ def control_step(A, PREV, READ, ros2, H, kind, max_delta, mid, half, low, high, 
                      READ[:, READ_TORQUE : READ_TORQUE + 2],
                      READ[:, DN_1 : DT_1 + 2], tactile, OBS)
     return True
+
+
+@njit(cache=True)
+def restart_rows(Y, U, PRM, ROWS, READ, RADIUS, VALIDATED, ERROR, GRASPED, observe, tactile,
+                 OBS):
+    """The start-state bookkeeping of the hands ROWS (int (K,)) just restarted, in one compiled
+    call: their read-outs into READ (N, ``READ_SIZE``), validated box (fingertip radius
+    RADIUS (N,)) into VALIDATED (N, 2), max |C^H| (m) and max |C^N| (m/s) into ERROR (N, 2),
+    grasp (both d_n > 0) into GRASPED (N,), and with ``observe`` (ideal sensors) the newest
+    frame (``tactile``: with the deformations) into the first columns of OBS (N, size). The
+    other rows are left as they are."""
+    fill_readout_rows(Y, U, PRM, ROWS, READ)
+    for k in range(ROWS.shape[0]):
+        s = ROWS[k]
+        r = READ[s : s + 1]
+        validity.validated_rows(r[:, DN_1 : DT_1 + 2], r[:, TH_1 : TH_1 + 2],
+                                r[:, X_OBJ : X_OBJ + 3], RADIUS[s : s + 1],
+                                VALIDATED[s : s + 1])
+        _constraint_errors(Y, PRM, ROWS[k : k + 1], ERROR[s : s + 1])
+        GRASPED[s] = READ[s, DN_1] > 0.0 and READ[s, DN_2] > 0.0
+        if observe:
+            observe_rows(r[:, TH_1 : TH_1 + 2], r[:, NQ + TH_1 : NQ + TH_1 + 2],
+                         r[:, READ_SETPOINT : READ_SETPOINT + 2],
+                         r[:, READ_TORQUE : READ_TORQUE + 2], r[:, DN_1 : DT_1 + 2], tactile,
+                         OBS[s : s + 1])
 
 
 @structref.register

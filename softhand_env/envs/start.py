@@ -20,8 +20,7 @@ from __future__ import annotations
 from collections import OrderedDict
 from collections.abc import Iterator
 from contextlib import contextmanager
-from dataclasses import dataclass
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 
@@ -117,8 +116,7 @@ def grasp_state(
     return hit[0].copy(), hit[1], hit[2]
 
 
-@dataclass(frozen=True)
-class EpisodeStart:
+class EpisodeStart(NamedTuple):
     """Everything :func:`start_episode` draws and computes for one new episode.
 
     Attributes

@@ -184,26 +184,39 @@ class GoalTask(Task):
         self._obs_scales = np.array([t.obs_scale for t in self.targets])
         # (pose index, tolerance, error scale) per target, as evaluate reads them every step
         self._scoring = tuple((t.index, t.tolerance, t.scale) for t in self.targets)
-        #: Goals are drawn from ``goal_scale`` times the goal ranges (curriculum; 1 = as set).
-        self.goal_scale = 1.0
+        self._goal_scale = 1.0
+        self._draw = self._draw_bounds()
+
+    @property
+    def goal_scale(self) -> float:
+        """Goals are drawn from ``goal_scale`` times the goal ranges (curriculum; 1 = as set;
+        :meth:`set_goal_scale` changes it)."""
+        return self._goal_scale
 
     def set_goal_scale(self, scale: float) -> None:
         """Draw goals from ``scale`` (in (0, 1]) times the goal ranges from the next reset on
         (a curriculum hook; goals given through ``reset(options={"goal": ...})`` are kept)."""
         if not (is_finite_real(scale) and 0.0 < scale <= 1.0):
             raise ValueError(f"goal scale must be a number in (0, 1] (got {scale!r})")
-        self.goal_scale = float(scale)
+        self._goal_scale = float(scale)
+        self._draw = self._draw_bounds()
+
+    def _draw_bounds(self) -> tuple[np.ndarray, np.ndarray]:
+        """(low, high - low) of the goal draw at the present ``goal_scale``."""
+        ranges = self._ranges * self._goal_scale
+        low = -ranges
+        return low, ranges - low
 
     def sample_goal(self, rng: np.random.Generator) -> np.ndarray:
-        ranges = self._ranges * self.goal_scale
         # rng.uniform(low, high) on arrays, as NumPy computes it (low + (high - low) * u from
         # the same doubles), without its broadcasting path (about 30 us a call)
-        low = -ranges
-        return low + (ranges - low) * rng.random(ranges.shape)
+        low, span = self._draw
+        return low + span * rng.random(low.shape)
 
     def goal_observation(self, goal: np.ndarray) -> np.ndarray:
         scaled = np.asarray(goal, dtype=np.float64) / self._obs_scales
-        return np.clip(scaled, -OBS_BOUND, OBS_BOUND)
+        # np.clip's values, without its dispatch (several microseconds a call)
+        return np.minimum(np.maximum(scaled, -OBS_BOUND), OBS_BOUND)
 
     def evaluate(self, pose, goal, ctrl, failed, grasped, scalar=None):
         # one environment on Python scalars is scored on Python bools (a NumPy bool combined

@@ -22,24 +22,33 @@ import numpy as np
 
 from softhand_env.envs.actions import delay_setpoints
 from softhand_env.envs.config import EnvConfig
-from softhand_env.envs.fused import control_step_packed, pack_arguments
+from softhand_env.envs.fused import control_step_packed, pack_arguments, restart_rows
 from softhand_env.envs.observation import add_frame_noise, observe_rows
 from softhand_env.envs.sensors import SensorState
 from softhand_env.envs.start import start_episode
 from softhand_env.envs.windows import SlipWindows
 from softhand_env.physics import friction, validity
 from softhand_env.physics.hand import (
+    READ_SETPOINT,
     READ_SIZE,
     REASON_NAMES,
     HandPhysics,
     HandReadouts,
     StepStatus,
 )
+from softhand_env.physics.model import DN_1, DT_1, X_OBJ
 
 #: Action dtypes the compiled one-episode step takes (others go through the batched pieces).
 _FUSED_DTYPES = (np.dtype(np.float32), np.dtype(np.float64))
 #: The rows of one episode.
 _ROW_0 = np.zeros(1, dtype=np.int64)
+#: Info keys read from the read-out block: their columns (``take`` copies such a strided
+#: column range in a third of the time of ``copy``).
+_READ_COLUMNS = {
+    "object_pose": np.arange(X_OBJ, X_OBJ + 3),
+    "deformation": np.arange(DN_1, DT_1 + 2),
+    "setpoint": np.arange(READ_SETPOINT, READ_SETPOINT + 2),
+}
 
 
 def reset_goal(options: Any, allowed: tuple[str, ...]) -> Any:
@@ -157,7 +166,6 @@ class EpisodeBatch:
         self._sent = np.zeros((n, cfg.setpoint_latency, 2))
         self._goal_cols: tuple[Any, ...] = ()
         self._refresh_goal_columns()
-        self._r = self.physics.readouts()
         self.sensing: SensorState | None = None
         if not cfg.sensors.ideal:
             self.sensing = SensorState(cfg.sensors, n, cfg.dt, cfg.layout.tactile,
@@ -173,8 +181,11 @@ class EpisodeBatch:
         self._done = np.zeros(n, dtype=np.int64)
         self._substeps = np.zeros(n, dtype=np.int64)
         self._fused_args: tuple[Any, ...] = ()
+        # the read-outs of the last step or reset, written in place (``_r`` names the columns)
         self._read_block = np.zeros((n, READ_SIZE))
         self._read_views = HandReadouts.of_block(self._read_block)
+        self.physics.read_into(self._read_block)
+        self._r = self._read_views
         self._fused_pack: Any = None  # fused.Arguments of _fused_args, built on first use
         self._rows0 = self._rows(0)  # views, as info reads row 0 every step of a single env
         self._reads0 = self._read_rows0()
@@ -184,18 +195,16 @@ class EpisodeBatch:
     def __getstate__(self) -> dict[str, Any]:
         state = self.__dict__.copy()
         state["_fused_pack"] = None  # a compiled record does not pickle; rebuilt on use
-        del state["_read_views"], state["_rows0"], state["_reads0"]  # views unpickle as copies
-        if self._r is self._read_views:
-            state["_r"] = None
+        for views in ("_r", "_read_views", "_rows0", "_reads0"):  # views unpickle as copies
+            del state[views]
         return state
 
     def __setstate__(self, state: dict[str, Any]) -> None:
         self.__dict__.update(state)
         self._read_views = HandReadouts.of_block(self._read_block)
+        self._r = self._read_views
         self._rows0 = self._rows(0)
         self._reads0 = self._read_rows0()
-        if self._r is None:
-            self._r = self._read_views
 
     def _refresh_goal_columns(self) -> None:
         """Goal coordinates as the task reads them: floats for one episode (the task's scalar
@@ -209,47 +218,62 @@ class EpisodeBatch:
     def start(self, i: int, rng: np.random.Generator | None, goal: Any = None) -> None:
         """Start a new episode in environment ``i`` (draws from ``rng``, see
         :func:`~softhand_env.envs.start.start_episode`); call :meth:`finish_reset` next."""
-        start = start_episode(self.cfg, _generator((rng,), 0), goal)
-        self.physics.reset_hand(i, start.state, start.setpoint, start.params)
-        self.latency[i] = start.latency
-        self._sent[i] = start.setpoint
-        self.goal[i] = start.goal
-        self.mu[i] = start.params.mu
-        self.radius[i] = start.params.a
-        self.terms[:, i] = 0.0
-        self.flags[i] = 0
-        self.contact_impulse[i] = 0.0
-        self.friction_ratio[i] = 0.0
-        self.tension[i] = False
-        self.reason[i] = None
+        self.start_rows(np.array([i]), (rng,), None if goal is None else (goal,))
+
+    def start_rows(
+        self,
+        rows: np.ndarray,
+        rngs: Sequence[np.random.Generator | None],
+        goals: Sequence[Any] | None = None,
+    ) -> None:
+        """:meth:`start` of the environments ``rows`` (int (K,)): environment ``rows[k]``
+        draws from ``rngs[k]`` (its goal ``goals[k]`` if given), then every array is written
+        at once; call :meth:`finish_reset` next."""
+        generators = [_generator(rngs, k) for k in range(len(rows))]
+        starts = [start_episode(self.cfg, rng, None if goals is None else goals[k])
+                  for k, rng in enumerate(generators)]
+        setpoints = np.array([s.setpoint for s in starts])
+        self.physics.reset_hands(rows, np.array([s.state for s in starts]), setpoints,
+                                 [s.params for s in starts])
+        self.latency[rows] = [s.latency for s in starts]
+        self._sent[rows] = setpoints[:, None]  # every earlier command: the grasp set-points
+        self.goal[rows] = [s.goal for s in starts]
+        self.mu[rows] = [s.params.mu for s in starts]
+        self.radius[rows] = [s.params.a for s in starts]
+        self.terms[:, rows] = 0.0
+        self.flags[rows] = 0
+        self.contact_impulse[rows] = 0.0
+        self.friction_ratio[rows] = 0.0
+        self.tension[rows] = False
+        self.reason[rows] = None
         if self.windows is not None:
-            self.windows.restart(i)
+            self.windows.restart(rows)
         if self.sensing is not None:  # after every draw of start_episode
-            self.sensing.start(i, _generator((rng,), 0))
+            for i, rng in zip(rows.tolist(), generators, strict=True):
+                self.sensing.start(i, rng)
 
     def finish_reset(
         self, mask: np.ndarray, rngs: Sequence[np.random.Generator | None]
     ) -> None:
         """Start-state info and observations of the environments of ``mask`` (bool (N,)) just
         started: the first frame in every history slot (noise drawn once from ``rngs[i]``),
-        then the goal."""
+        then the goal. The other environments' rows are left as they are."""
         p = self.physics
         self._refresh_goal_columns()  # the goals start() drew
-        r = self._r = p.readouts()
-        self._refresh_validated()
         rows = np.flatnonzero(mask)
-        grasped = (r.deformation[rows, 0] > 0.0) & (r.deformation[rows, 1] > 0.0)
-        _, success = self._evaluate(r.object_pose, np.zeros(rows.size),
-                                    np.zeros(rows.size, dtype=bool), grasped, rows)
-        self.constraint_error[rows] = p.constraint_errors(rows)
-        self.grasped[rows] = grasped
-        self.success[rows] = np.broadcast_to(success, (rows.size,))
         layout = self.cfg.layout
-        f, h = layout.frame_size, layout.history_size
-        frames = self._frames(rows=rows, rngs=rngs, first=True)
         obs = self.obs
+        restart_rows(*p.step_arrays()[:3], rows, self._read_block, self.radius, self.validated,
+                     self.constraint_error, self.grasped, self.sensing is None,
+                     layout.tactile, obs)
+        grasped = self.grasped[rows]
+        _, success = self._evaluate(self._r.object_pose, np.zeros(rows.size),
+                                    np.zeros(rows.size, dtype=bool), grasped, rows)
+        self.success[rows] = success
+        f, h = layout.frame_size, layout.history_size
         obs[rows, h:] = self.task.goal_observation(self.goal[rows])
-        obs[rows, :f] = frames[rows]
+        if self.sensing is not None:  # restart_rows wrote the frames of ideal sensors
+            obs[rows, :f] = self._frames(rows=rows, rngs=rngs, first=True, subset=True)
         noise = self.cfg.randomization.obs_noise
         if noise > 0:  # row by row: each from its environment's generator
             for i in rows:
@@ -280,23 +304,28 @@ class EpisodeBatch:
         rows: Any = (),
         rngs: Sequence[np.random.Generator | None] = (),
         first: bool = False,
+        subset: bool = False,
     ) -> np.ndarray:
         """The newest observation frame of every environment, float32 (N, frame_size), written
-        into the first frame_size columns of ``out`` if given.
+        into the first frame_size columns of ``out`` if given; with ``subset`` the frames of
+        the environments ``rows`` only (K, frame_size).
 
         With a non-ideal sensor model the environments ``rows`` (array of int) are read
         through it (drawing from ``rngs[i]``; ``first``: the first reading of an episode);
         the other rows' frames are not used by the caller."""
         r = self._r
-        if out is None:
-            out = np.empty((self.num_envs, self.cfg.layout.frame_size), dtype=np.float32)
-        angle, velocity, torque, deformation = (
-            r.finger_angles, r.finger_velocities, r.joint_torques, r.deformation)
+        angle, velocity, setpoint, torque, deformation = (
+            r.finger_angles, r.finger_velocities, r.setpoint, r.joint_torques, r.deformation)
         if self.sensing is not None:
             angle, velocity, torque, deformation = self.sensing.read(
                 angle, torque, deformation, rows, [_generator(rngs, i) for i in rows], first)
-        observe_rows(angle, velocity, r.setpoint, torque, deformation,
-                     self.cfg.layout.tactile, out)
+        if subset:
+            angle, velocity, setpoint, torque, deformation = (
+                a[rows] for a in (angle, velocity, setpoint, torque, deformation))
+        if out is None:
+            out = np.empty((angle.shape[0], self.cfg.layout.frame_size), dtype=np.float32)
+        observe_rows(angle, velocity, setpoint, torque, deformation, self.cfg.layout.tactile,
+                     out)
         return out
 
     # ------------------------------------------------------------------------------- step
@@ -339,19 +368,22 @@ class EpisodeBatch:
         # a fresh array (``failed`` may be the status buffer)
         terminated = (failed | self.success) if self.task.terminate_on_success else failed.copy()
         if cfg.terminate_on_slip and contact.any():
-            for k in np.flatnonzero(contact):
-                self.reason[k] = "tension" if self.tension[k].any() else "slip"
+            k = np.flatnonzero(contact)
+            self.reason[k] = np.where(self.tension[k].any(axis=1), "tension", "slip").tolist()
         if self.task.terminate_on_success:
             self.reason[terminated & ~failed] = "success"
         # observations: shift the history, write the newest frames
-        rows = np.arange(n) if skip is None else np.flatnonzero(~skip)
         if h > f:
             self.obs[:, f:h] = self.obs[:, : h - f]
-        self._frames(self.obs, rows=rows, rngs=rngs)
         noise = cfg.randomization.obs_noise
-        if noise > 0:
-            for i in rows:
-                add_frame_noise(self.obs[i, :f], noise, _generator(rngs, i))
+        if self.sensing is None and noise == 0:  # no draws: every row at once
+            self._frames(self.obs)
+        else:
+            rows = np.arange(n) if skip is None else np.flatnonzero(~skip)
+            self._frames(self.obs, rows=rows, rngs=rngs)
+            if noise > 0:
+                for i in rows:
+                    add_frame_noise(self.obs[i, :f], noise, _generator(rngs, i))
         return self.terms.sum(axis=0), terminated
 
     def step_one(self, actions: np.ndarray, rng: np.random.Generator | None) -> tuple[float, bool]:
@@ -429,7 +461,7 @@ class EpisodeBatch:
             self.contact_impulse[:] = status.impulse
             self.friction_ratio[:] = status.friction_ratio
             self.tension[:] = status.tension
-        self._r = self.physics.readouts()
+        self.physics.read_into(self._read_block)
         self._refresh_validated()
         self.grasped[:] = grasped
         self.flags[:] = status.flags
@@ -471,7 +503,6 @@ class EpisodeBatch:
                                  p.integrator == "ros2", p.ros2_dt, self._fused_pack)
         if not ok:
             raise ValueError(f"action must be finite (got {actions.tolist()})")
-        self._r = self._read_views
         self.reason[0] = REASON_NAMES[self._reason_code[0]]
         return self._failed, self.grasped, self._bad, self._ctrl
 
@@ -514,7 +545,10 @@ class EpisodeBatch:
         terms (N,). The three contact keys are 0 / False at a reset (no step taken). Fresh
         arrays.
         """
-        return {key: value.copy() for key, value in self._info_arrays().items()}
+        block = self._read_block
+        return {key: value.copy() if key not in _READ_COLUMNS
+                else block.take(_READ_COLUMNS[key], axis=1)
+                for key, value in self._info_arrays().items()}
 
     def info(self, i: int = 0) -> dict[str, Any]:
         """``info`` of environment ``i`` as a single environment returns it: the row i of
@@ -522,7 +556,7 @@ class EpisodeBatch:
         # the keys of _info_arrays, built directly (a single env does this every step)
         r = self._r
         ce, fr, ci, te, va, go = (self._rows0 if i == 0 else self._rows(i))
-        if i == 0 and r is self._read_views:
+        if i == 0:
             pose, deformation, setpoint = self._reads0
         else:
             pose, deformation, setpoint = r.object_pose[i], r.deformation[i], r.setpoint[i]

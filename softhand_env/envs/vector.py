@@ -113,6 +113,8 @@ class SoftHandVectorEnv(VectorEnv):
         self._rngs: list[np.random.Generator | None] = [None] * n
         self._seeds: list[int | None] = [None] * n
         self._renderer: SceneRenderer | None = None
+        #: ``"_" + key`` of each info key, the key of its mask
+        self._mask_keys = {key: f"_{key}" for key in self._batch.info_values()}
 
     # ------------------------------------------------------------------------------ reset
     @property
@@ -153,13 +155,12 @@ class SoftHandVectorEnv(VectorEnv):
             if not (isinstance(mask, np.ndarray) and mask.dtype == np.bool_ and mask.shape == (n,)):
                 raise ValueError(f"options['reset_mask'] must be a bool array of shape ({n},)")
         goals = self._goal_rows(goal)
-        for i in np.flatnonzero(mask):
+        rows = np.flatnonzero(mask)
+        for i in rows:
             if seeds[i] is not None or self._rngs[i] is None:
                 self._rngs[i], self._seeds[i] = seeding.np_random(seeds[i])
-            self._batch.start(int(i), self._rngs[i], None if goals is None else goals[i])
+        self._reset_rows(mask, None if goals is None else [goals[i] for i in rows])
         self._was_reset[mask] = True
-        self._batch.finish_reset(mask, self._rngs)
-        self._steps[mask] = 0
         self._autoreset[mask] = False
         return self._batch.obs.copy(), self._infos(mask)
 
@@ -178,10 +179,11 @@ class SoftHandVectorEnv(VectorEnv):
             return list(g)
         return [goal] * self.num_envs
 
-    def _reset_rows(self, mask: np.ndarray) -> None:
-        """Start new episodes in the environments of ``mask`` (their own generators)."""
-        for i in np.flatnonzero(mask):
-            self._batch.start(int(i), self._rngs[i])
+    def _reset_rows(self, mask: np.ndarray, goals: list[Any] | None = None) -> None:
+        """Start new episodes in the environments of ``mask`` (their own generators; one goal
+        per environment of ``mask`` if given)."""
+        rows = np.flatnonzero(mask)
+        self._batch.start_rows(rows, [self._rngs[i] for i in rows], goals)
         self._batch.finish_reset(mask, self._rngs)
         self._steps[mask] = 0
 
@@ -245,13 +247,16 @@ class SoftHandVectorEnv(VectorEnv):
         """Batched info (each key with its ``_key`` mask, as :class:`SyncVectorEnv` builds)."""
         infos: dict[str, Any] = {}
         full = bool(mask.all())
-        for key, value in self._batch.info_values().items():
+        values = self._batch.info_values()
+        masks = np.empty((len(values), mask.size), dtype=bool)  # one row per key, none shared
+        masks[:] = mask
+        for (key, value), key_mask in zip(values.items(), masks, strict=True):
             if not full:
                 kept = np.full_like(value, None) if value.dtype == object else np.zeros_like(value)
                 kept[mask] = value[mask]
                 value = kept
             infos[key] = value
-            infos[f"_{key}"] = mask.copy()
+            infos[self._mask_keys[key]] = key_mask
         return infos
 
     @property

@@ -135,8 +135,8 @@ class SlipWindows:
         self.left = np.full(num_hands, self.window, dtype=np.int64)
         self.impulse = np.zeros((num_hands, 4))
 
-    def restart(self, i: int) -> None:
-        """Start a fresh window for hand ``i`` (at a reset)."""
+    def restart(self, i: int | np.ndarray) -> None:
+        """Start a fresh window for hand ``i`` (an index or int array of them; at a reset)."""
         self.left[i] = self.window
         self.impulse[i] = 0.0
 
