@@ -15,6 +15,7 @@ twentieth of a ROS2 control step)::
            -> validated box       (physics.validity.validated_rows)
            -> observation frame   (envs.observation.observe_rows; ideal sensors only: a
                                   sensor model draws from the generator first)
+           -> reward, success     (envs.tasks.score_rows, goal tasks)
 
 Each piece is the same compiled function the batched path calls, on the same arrays, so the
 numbers are bit for bit those of the batched path (``tests/envs/test_one_episode_step.py``).
@@ -30,6 +31,7 @@ from numba.experimental import structref
 
 from softhand_env.envs.actions import _map_setpoints, delay_setpoints
 from softhand_env.envs.observation import observe_rows
+from softhand_env.envs.tasks import score_rows
 from softhand_env.envs.windows import _account
 from softhand_env.physics import (
     friction,
@@ -55,7 +57,9 @@ def control_step(A, PREV, READ, ros2, H, kind, max_delta, mid, half, low, high, 
                  window, stop, LEFT, WIN_IMPULSE, ACTIVE, DONE, SUB,
                  OUT_FLAGS, OUT_ERROR, OUT_FAILED, OUT_GRASPED, OUT_REASON,
                  IMPULSE, RATIO, TENSION, CONTACT,
-                 RADIUS, VALIDATED, observe, tactile, OBS, frame, history):
+                 RADIUS, VALIDATED, observe, tactile, OBS, frame, history,
+                 score, GOAL, INDEX, TOLERANCE, SCALE, WEIGHTS, FAILED_ONE, TERMS, SUCCESS,
+                 REWARD, ROW):
     """One control step of one hand (arrays with a leading axis of 1), in place.
 
     Action map: actions A (1, 2), previous set-points PREV (1, 2) (rad), the map's constants
@@ -76,7 +80,11 @@ def control_step(A, PREV, READ, ros2, H, kind, max_delta, mid, half, low, high, 
     (1,) (slip or tension). Read-outs into READ (1, ``READ_SIZE`` of
     :mod:`softhand_env.physics.hand`), the validated box (fingertip radius RADIUS (1,)) into
     VALIDATED (1, 2), and with ``observe`` the newest frame (``frame`` entries) into OBS
-    (1, size) after shifting its ``history`` entries.
+    (1, size) after shifting its ``history`` entries. The step's failure with slip and tension
+    when they end the episode (``stop``) into FAILED_ONE (1,); with ``score`` (a goal task)
+    the task's terms, success and reward (:func:`~softhand_env.envs.tasks.score_rows` of the
+    goal GOAL (1, goal_dim) and the task's INDEX, TOLERANCE, SCALE, WEIGHTS; ROW = [0]) into
+    TERMS (4, 1), SUCCESS (1,), REWARD (1,).
 
     Returns False, with nothing changed, if the action is not finite.
     """
@@ -133,6 +141,10 @@ def control_step(A, PREV, READ, ros2, H, kind, max_delta, mid, half, low, high, 
                      READ[:, READ_SETPOINT : READ_SETPOINT + 2],
                      READ[:, READ_TORQUE : READ_TORQUE + 2],
                      READ[:, DN_1 : DT_1 + 2], tactile, OBS)
+    FAILED_ONE[0] = OUT_FAILED[0] or (stop and CONTACT[0])
+    if score:
+        score_rows(READ[:, X_OBJ : X_OBJ + 3], GOAL, CTRL, FAILED_ONE, OUT_GRASPED, ROW, INDEX,
+                   TOLERANCE, SCALE, WEIGHTS, TERMS, SUCCESS, REWARD)
     return True
 
 
@@ -182,7 +194,8 @@ ARGUMENT_FIELDS = (
     "MU", "NO_SKIP", "window", "stop", "LEFT", "WIN_IMPULSE", "ACTIVE", "DONE", "SUB",
     "OUT_FLAGS", "OUT_ERROR", "OUT_FAILED", "OUT_GRASPED", "OUT_REASON", "IMPULSE", "RATIO",
     "TENSION", "CONTACT", "RADIUS", "VALIDATED", "observe", "tactile", "OBS", "frame",
-    "history",
+    "history", "score", "GOAL", "INDEX", "TOLERANCE", "SCALE", "WEIGHTS", "FAILED_ONE",
+    "TERMS", "SUCCESS", "REWARD", "ROW",
 )
 structref.define_proxy(Arguments, _ArgumentsType, list(ARGUMENT_FIELDS))
 
@@ -193,7 +206,9 @@ def pack_arguments(kind, max_delta, mid, half, low, high, CMD, CTRL, SENT, LATEN
                    ch_limit, dn_limit, base_limit, FLAGS, DIAG, FAILED, GRASPED, REASON, MU,
                    NO_SKIP, window, stop, LEFT, WIN_IMPULSE, ACTIVE, DONE, SUB, OUT_FLAGS,
                    OUT_ERROR, OUT_FAILED, OUT_GRASPED, OUT_REASON, IMPULSE, RATIO, TENSION,
-                   CONTACT, RADIUS, VALIDATED, observe, tactile, OBS, frame, history):
+                   CONTACT, RADIUS, VALIDATED, observe, tactile, OBS, frame, history,
+                   score, GOAL, INDEX, TOLERANCE, SCALE, WEIGHTS, FAILED_ONE, TERMS, SUCCESS,
+                   REWARD, ROW):
     """An :class:`Arguments` record of :func:`control_step`'s arguments after ``H`` (the
     arrays are shared with the caller)."""
     return Arguments(kind, max_delta, mid, half, low, high, CMD, CTRL, SENT, LATENCY, APPLIED,
@@ -201,7 +216,9 @@ def pack_arguments(kind, max_delta, mid, half, low, high, CMD, CTRL, SENT, LATEN
                      ch_limit, dn_limit, base_limit, FLAGS, DIAG, FAILED, GRASPED, REASON, MU,
                      NO_SKIP, window, stop, LEFT, WIN_IMPULSE, ACTIVE, DONE, SUB, OUT_FLAGS,
                      OUT_ERROR, OUT_FAILED, OUT_GRASPED, OUT_REASON, IMPULSE, RATIO, TENSION,
-                     CONTACT, RADIUS, VALIDATED, observe, tactile, OBS, frame, history)
+                     CONTACT, RADIUS, VALIDATED, observe, tactile, OBS, frame, history,
+                     score, GOAL, INDEX, TOLERANCE, SCALE, WEIGHTS, FAILED_ONE, TERMS, SUCCESS,
+                     REWARD, ROW)
 
 
 @njit(cache=True)
@@ -216,4 +233,6 @@ def control_step_packed(A, PREV, READ, ros2, H, S):
                         S.stop, S.LEFT, S.WIN_IMPULSE, S.ACTIVE, S.DONE, S.SUB, S.OUT_FLAGS,
                         S.OUT_ERROR, S.OUT_FAILED, S.OUT_GRASPED, S.OUT_REASON, S.IMPULSE,
                         S.RATIO, S.TENSION, S.CONTACT, S.RADIUS, S.VALIDATED, S.observe,
-                        S.tactile, S.OBS, S.frame, S.history)
+                        S.tactile, S.OBS, S.frame, S.history, S.score, S.GOAL, S.INDEX,
+                        S.TOLERANCE, S.SCALE, S.WEIGHTS, S.FAILED_ONE, S.TERMS, S.SUCCESS,
+                        S.REWARD, S.ROW)

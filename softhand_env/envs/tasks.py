@@ -1,9 +1,10 @@
 """Tasks: goal sampling, reward terms, success and termination (dm_control's Task role).
 
 A task never touches the integrator; the environment hands it the object's pose (a physics
-read-out) and the step's failure classification after every control step. Every method is
-written with arithmetic operators only, so the same code evaluates one environment (Python
-floats) or a batch (arrays of shape ``(N,)``, :mod:`softhand_env.envs.transition`).
+read-out) and the step's failure classification after every control step
+(:meth:`Task.score`, into the episode batch's arrays, :mod:`softhand_env.envs.transition`).
+A goal task scores in one compiled function (:func:`score_rows`), for one environment, a
+batch, and the relabelled goals of :meth:`Task.evaluate` alike.
 
 Tasks (variants are constructor arguments, not new classes):
 
@@ -31,6 +32,7 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
+from numba import njit
 
 from softhand_env.envs.observation import ANGLE_SCALE, OBS_BOUND, POSITION_SCALE
 from softhand_env.envs.options import check_keyword
@@ -58,6 +60,53 @@ POSE_THETA = 2
 
 #: Reward term names of goal tasks, in summation order.
 GOAL_TERMS = ("reward_goal", "reward_success", "reward_ctrl", "reward_failure")
+
+
+@njit(cache=True)
+def score_rows(pose, goal, ctrl, failed, grasped, rows, index, tolerance, scale, weights,
+               terms, success, reward):
+    """The goal-task reward of the environments ``rows`` (int (K,)), in place (module doc).
+
+    Parameters
+    ----------
+    pose : ndarray, shape (N, P)
+        Object coordinates; column ``index[k]`` is target k's (m or rad).
+    goal : ndarray, shape (N, goal_dim)
+        Goals (SI).
+    ctrl : ndarray, shape (N,)
+        |u_t - u_{t-1}|^2 / max_delta^2.
+    failed, grasped : ndarray of bool, shape (N,)
+    rows : ndarray of int, shape (K,)
+    index : ndarray of int, shape (goal_dim,)
+    tolerance, scale : ndarray, shape (goal_dim,)
+        Success tolerance and error scale per target (SI).
+    weights : ndarray, shape (4,)
+        goal, success, ctrl and failure weights.
+    terms : ndarray, shape (4, N)
+        Receives the four terms (:data:`GOAL_TERMS` order) in the columns ``rows``.
+    success : ndarray of bool, shape (N,)
+    reward : ndarray, shape (N,)
+        Receives the terms' sum, added in their order.
+    """
+    for k in range(rows.shape[0]):
+        s = rows[k]
+        ok = grasped[s] and not failed[s]  # a failed step never succeeds
+        err = 0.0
+        for t in range(index.shape[0]):
+            d = abs(pose[s, index[t]] - goal[s, t])
+            err = err + d / scale[t]
+            ok = ok and d <= tolerance[t]
+        t0 = weights[0] * np.exp(-err)
+        t1 = weights[1] * (1.0 if ok else 0.0)
+        t2 = 0.0 - weights[2] * ctrl[s]
+        t3 = 0.0 - weights[3] * (1.0 if failed[s] else 0.0)
+        terms[0, s] = t0
+        terms[1, s] = t1
+        terms[2, s] = t2
+        terms[3, s] = t3
+        success[s] = ok
+        reward[s] = ((t0 + t1) + t2) + t3
+
 
 @dataclass(frozen=True)
 class Target:
@@ -127,12 +176,12 @@ class Task:
 
         Parameters
         ----------
-        pose : sequence of 3 floats, or of 3 ndarrays (N,)
-            Object (x, y, theta) (m, m, rad) after the step, coordinate first, so that
-            ``pose[k]`` is a scalar for one environment and a column for a batch.
-        goal : tuple of float or of ndarray (N,)
+        pose : sequence or mapping
+            Object (x, y, theta) (m, m, rad) after the step, coordinate first: ``pose[k]``
+            (k = 0, 1, 2, or the targets' indices of a mapping) a scalar or an array.
+        goal : tuple of float or of ndarray
             Goal coordinates (SI), one entry per target.
-        ctrl : float or ndarray (N,)
+        ctrl : float or ndarray
             |u_t - u_{t-1}|^2 / max_delta^2 (dimensionless).
         failed, grasped : bool or ndarray of bool
             The step's failure classification (:class:`~softhand_env.physics.StepStatus`),
@@ -140,10 +189,23 @@ class Task:
             not ``failed``: a step that over-compresses or slips never counts as success, even
             with the object on the goal.
         scalar : bool, optional
-            The arguments are Python scalars (one environment: ``failed`` a bool, the
-            coordinates floats); None (default) tells from their types.
+            Return Python floats and a bool; None (default): when every argument is a scalar.
+            Otherwise the terms are float arrays and success a bool array of the arguments'
+            broadcast shape.
         """
         return (), False
+
+    def score(
+        self, pose: np.ndarray, goal: np.ndarray, ctrl: np.ndarray, failed: np.ndarray,
+        grasped: np.ndarray, rows: np.ndarray, terms: np.ndarray, success: np.ndarray,
+        reward: np.ndarray,
+    ) -> None:
+        """:meth:`evaluate` of the environments ``rows`` (int (K,)) of a batch, in place: object
+        poses (N, 3), goals (N, goal_dim), ``ctrl`` (N,), ``failed`` and ``grasped`` bool (N,)
+        in; the terms' columns of ``terms`` (len(:attr:`terms`), N), ``success`` bool (N,) and
+        ``reward`` (N,) (their sum) out."""
+        success[rows] = False
+        reward[rows] = 0.0
 
 
 NoTask = Task
@@ -175,17 +237,25 @@ class GoalTask(Task):
             check_keyword(key, value, allow_none=False)
         self.name = name
         self.targets = tuple(targets)
-        self.goal_weight = float(goal_weight)
-        self.success_weight = float(success_weight)
-        self.ctrl_weight = float(ctrl_weight)
-        self.failure_weight = float(failure_weight)
         self.terminate_on_success = bool(terminate_on_success)
         self._ranges = np.array([t.goal_range for t in self.targets])
         self._obs_scales = np.array([t.obs_scale for t in self.targets])
-        # (pose index, tolerance, error scale) per target, as evaluate reads them every step
-        self._scoring = tuple((t.index, t.tolerance, t.scale) for t in self.targets)
+        # the constants of score_rows
+        self._index = np.array([t.index for t in self.targets], dtype=np.int64)
+        self._tolerance = np.array([t.tolerance for t in self.targets])
+        self._scale = np.array([t.scale for t in self.targets])
+        self._weights = np.array([goal_weight, success_weight, ctrl_weight, failure_weight],
+                                 dtype=np.float64)
         self._goal_scale = 1.0
         self._draw = self._draw_bounds()
+
+    # the weights of the reward terms (module doc), fixed at construction
+    goal_weight = property(lambda self: float(self._weights[0]), doc="Weight of reward_goal.")
+    success_weight = property(lambda self: float(self._weights[1]),
+                              doc="Weight of reward_success.")
+    ctrl_weight = property(lambda self: float(self._weights[2]), doc="Weight of reward_ctrl.")
+    failure_weight = property(lambda self: float(self._weights[3]),
+                              doc="Weight of reward_failure.")
 
     @property
     def goal_scale(self) -> float:
@@ -219,29 +289,33 @@ class GoalTask(Task):
         return np.minimum(np.maximum(scaled, -OBS_BOUND), OBS_BOUND)
 
     def evaluate(self, pose, goal, ctrl, failed, grasped, scalar=None):
-        # one environment on Python scalars is scored on Python bools (a NumPy bool combined
-        # with a Python one costs a microsecond a time); the same numbers as a batch's row
-        if scalar is None:
-            scalar = isinstance(failed, bool) and isinstance(grasped, (bool, np.bool_)) and all(
-                isinstance(pose[t.index], float) and isinstance(g, float)
-                for t, g in zip(self.targets, goal, strict=True)
-            )
-        # a failed step never succeeds
-        success = (bool(grasped) and not failed) if scalar else (
-            grasped & ~np.asarray(failed, dtype=bool))
-        err = 0.0
-        for (index, tolerance, scale), g in zip(self._scoring, goal, strict=True):
-            d = abs(pose[index] - g)
-            err = err + d / scale
-            within = d <= tolerance
-            success = (success and within) if scalar else (success & within)
-        terms = (
-            self.goal_weight * np.exp(-err),
-            self.success_weight * success,
-            0.0 - self.ctrl_weight * ctrl,
-            0.0 - self.failure_weight * failed,
-        )
-        return terms, success
+        coords = [np.asarray(pose[t.index], dtype=np.float64) for t in self.targets]
+        goals = [np.asarray(g, dtype=np.float64) for g in goal]
+        if len(goals) != len(coords):
+            raise ValueError(f"goal must have {len(coords)} coordinates (got {len(goals)})")
+        rest = (np.asarray(ctrl, dtype=np.float64), np.asarray(failed, dtype=bool),
+                np.asarray(grasped, dtype=bool))
+        shape = np.broadcast_shapes(*(a.shape for a in (*coords, *goals, *rest)))
+        m = math.prod(shape)
+
+        def flat(a: np.ndarray) -> np.ndarray:
+            return np.ascontiguousarray(np.broadcast_to(a, shape)).reshape(m)
+
+        terms = np.empty((len(GOAL_TERMS), m))
+        success = np.empty(m, dtype=bool)
+        reward = np.empty(m)
+        ctrl_m, failed_m, grasped_m = (flat(a) for a in rest)
+        score_rows(np.stack([flat(c) for c in coords], axis=1),
+                   np.stack([flat(g) for g in goals], axis=1), ctrl_m, failed_m, grasped_m,
+                   np.arange(m), np.arange(len(coords)), self._tolerance, self._scale,
+                   self._weights, terms, success, reward)
+        if scalar or (scalar is None and shape == ()):
+            return tuple(terms[:, 0].tolist()), bool(success[0])
+        return tuple(t.reshape(shape) for t in terms), success.reshape(shape)
+
+    def score(self, pose, goal, ctrl, failed, grasped, rows, terms, success, reward):
+        score_rows(pose, goal, ctrl, failed, grasped, rows, self._index, self._tolerance,
+                   self._scale, self._weights, terms, success, reward)
 
     def __repr__(self) -> str:
         return f"GoalTask({self.name!r}, targets={[t.name for t in self.targets]})"

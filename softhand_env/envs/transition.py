@@ -26,6 +26,7 @@ from softhand_env.envs.fused import control_step_packed, pack_arguments, restart
 from softhand_env.envs.observation import add_frame_noise, observe_rows
 from softhand_env.envs.sensors import SensorState
 from softhand_env.envs.start import start_episode
+from softhand_env.envs.tasks import GoalTask
 from softhand_env.envs.windows import SlipWindows
 from softhand_env.physics import friction, validity
 from softhand_env.physics.hand import (
@@ -146,6 +147,15 @@ class EpisodeBatch:
         self.goal = np.zeros((n, cfg.task.goal_dim))
         self.obs = np.zeros((n, cfg.layout.size), dtype=np.float32)
         self.terms = np.zeros((len(cfg.task.terms), n))
+        self._reward = np.zeros(n)  # the terms' sum of the last step
+        self._all_rows = np.arange(n)
+        self._failed_one = np.zeros(1, dtype=bool)  # one episode's failure, slip included
+        # what a start state is scored with: no control cost, no failure; its terms are
+        # dropped
+        self._zero = np.zeros(n)
+        self._false = np.zeros(n, dtype=bool)
+        self._scratch_terms = np.zeros_like(self.terms)
+        self._scratch_reward = np.zeros(n)
         self.constraint_error = np.zeros((n, 2))
         self.flags = np.zeros(n, dtype=np.int64)
         self.mu = np.full(n, cfg.params.mu)
@@ -164,8 +174,6 @@ class EpisodeBatch:
         self.latency = np.zeros(n, dtype=np.int64)
         # set-points commanded in the last K steps, newest first (only with K > 0)
         self._sent = np.zeros((n, cfg.setpoint_latency, 2))
-        self._goal_cols: tuple[Any, ...] = ()
-        self._refresh_goal_columns()
         self.sensing: SensorState | None = None
         if not cfg.sensors.ideal:
             self.sensing = SensorState(cfg.sensors, n, cfg.dt, cfg.layout.tactile,
@@ -205,14 +213,6 @@ class EpisodeBatch:
         self._r = self._read_views
         self._rows0 = self._rows(0)
         self._reads0 = self._read_rows0()
-
-    def _refresh_goal_columns(self) -> None:
-        """Goal coordinates as the task reads them: floats for one episode (the task's scalar
-        arithmetic is several times faster than on (1,) arrays), else (N,) columns."""
-        if self.num_envs == 1:
-            self._goal_cols = tuple(self.goal[0].tolist())
-        else:
-            self._goal_cols = tuple(self.goal.T)
 
     # ------------------------------------------------------------------------------ reset
     def start(self, i: int, rng: np.random.Generator | None, goal: Any = None) -> None:
@@ -259,17 +259,15 @@ class EpisodeBatch:
         started: the first frame in every history slot (noise drawn once from ``rngs[i]``),
         then the goal. The other environments' rows are left as they are."""
         p = self.physics
-        self._refresh_goal_columns()  # the goals start() drew
         rows = np.flatnonzero(mask)
         layout = self.cfg.layout
         obs = self.obs
         restart_rows(*p.step_arrays()[:3], rows, self._read_block, self.radius, self.validated,
                      self.constraint_error, self.grasped, self.sensing is None,
                      layout.tactile, obs)
-        grasped = self.grasped[rows]
-        _, success = self._evaluate(self._r.object_pose, np.zeros(rows.size),
-                                    np.zeros(rows.size, dtype=bool), grasped, rows)
-        self.success[rows] = success
+        # success at the start state (no action, no failure); the terms stay 0
+        self.task.score(self._r.object_pose, self.goal, self._zero, self._false, self.grasped,
+                        rows, self._scratch_terms, self.success, self._scratch_reward)
         f, h = layout.frame_size, layout.history_size
         obs[rows, h:] = self.task.goal_observation(self.goal[rows])
         if self.sensing is not None:  # restart_rows wrote the frames of ideal sensors
@@ -280,23 +278,6 @@ class EpisodeBatch:
                 add_frame_noise(obs[i, :f], noise, _generator(rngs, i))
         for k in range(1, layout.history_len):
             obs[rows, k * f : (k + 1) * f] = obs[rows, :f]
-
-    def _evaluate(
-        self, pose: np.ndarray, ctrl: np.ndarray, failed: np.ndarray, grasped: np.ndarray,
-        rows: np.ndarray | None = None,
-    ) -> tuple[tuple[Any, ...], Any]:
-        """The task's reward terms and success for object poses (N, 3) (one episode: on
-        Python scalars, see :meth:`_refresh_goal_columns`); with ``rows`` (int (k,)) for
-        those environments only (``ctrl``, ``failed``, ``grasped`` then (k,))."""
-        if self.num_envs == 1:
-            return self.task.evaluate(
-                tuple(pose[0].tolist()), self._goal_cols, float(ctrl[0]), bool(failed[0]),
-                bool(grasped[0]), scalar=True,
-            )
-        if rows is None:
-            return self.task.evaluate(tuple(pose.T), self._goal_cols, ctrl, failed, grasped)
-        return self.task.evaluate(tuple(pose[rows].T), tuple(c[rows] for c in self._goal_cols),
-                                  ctrl, failed, grasped)
 
     def _frames(
         self,
@@ -358,13 +339,8 @@ class EpisodeBatch:
         failed, grasped, contact, ctrl = self._step_batched(actions, skip)
         if cfg.terminate_on_slip:
             failed = failed | contact
-        r = self._r
-        terms, success = self._evaluate(r.object_pose, ctrl, failed, grasped)
-        if n == 1:
-            self.terms[:, 0] = terms
-        elif terms:
-            self.terms[:] = terms
-        self.success[:] = success
+        self.task.score(self._r.object_pose, self.goal, np.broadcast_to(ctrl, (n,)), failed,
+                        grasped, self._all_rows, self.terms, self.success, self._reward)
         # a fresh array (``failed`` may be the status buffer)
         terminated = (failed | self.success) if self.task.terminate_on_success else failed.copy()
         if cfg.terminate_on_slip and contact.any():
@@ -384,7 +360,7 @@ class EpisodeBatch:
             if noise > 0:
                 for i in rows:
                     add_frame_noise(self.obs[i, :f], noise, _generator(rngs, i))
-        return self.terms.sum(axis=0), terminated
+        return self._reward.copy(), terminated
 
     def step_one(self, actions: np.ndarray, rng: np.random.Generator | None) -> tuple[float, bool]:
         """:meth:`step` of one episode (N = 1) on Python scalars: the same numbers as row 0 of
@@ -406,16 +382,10 @@ class EpisodeBatch:
             reward, term = self.step(actions, (rng,))
             return float(reward[0]), bool(term[0])
         cfg, task = self.cfg, self.task
-        failed_a, grasped_a, contact_a, ctrl = self._step_fused(actions)
-        failed = bool(failed_a[0])
+        contact_a = self._step_fused(actions)
         contact = cfg.terminate_on_slip and bool(contact_a[0])
-        failed = failed or contact
-        terms, success = task.evaluate(
-            tuple(self._r.object_pose[0].tolist()), self._goal_cols, float(ctrl[0]), failed,
-            bool(grasped_a[0]), scalar=True,
-        )
-        self.terms[:, 0] = terms
-        self.success[0] = success
+        failed = bool(self._failed_one[0])  # slip and tension included when they terminate
+        success = bool(self.success[0])  # scored by the compiled step
         terminated = failed or (task.terminate_on_success and success)
         if contact:
             self.reason[0] = "tension" if self.tension[0].any() else "slip"
@@ -430,10 +400,7 @@ class EpisodeBatch:
         noise = cfg.randomization.obs_noise
         if noise > 0:
             add_frame_noise(self.obs[0, :f], noise, _generator((rng,), 0))
-        total = 0.0  # the terms in order, as terms.sum(axis=0) adds them (the stored doubles)
-        for term in terms:
-            total += float(term)
-        return total, bool(terminated)
+        return float(self._reward[0]), bool(terminated)
 
     def _step_batched(
         self, actions: np.ndarray, skip: np.ndarray | None
@@ -486,13 +453,25 @@ class EpisodeBatch:
             self.flags, self.constraint_error, self._failed, self.grasped, self._reason_code,
             self.contact_impulse, self.friction_ratio, self.tension, self._bad,
             self.radius, self.validated, self.sensing is None, layout.tactile, self.obs,
-            layout.frame_size, layout.history_size,
+            layout.frame_size, layout.history_size, *self._score_arguments(),
         )
 
-    def _step_fused(self, actions: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, Any]:
+    def _score_arguments(self) -> tuple[Any, ...]:
+        """The scoring arguments of :func:`~softhand_env.envs.fused.control_step`: whether
+        the task scores, its goal and constants (empty without a goal), the outputs."""
+        task = self.task
+        if isinstance(task, GoalTask):
+            constants = (task._index, task._tolerance, task._scale, task._weights)
+        else:
+            constants = (np.zeros(0, dtype=np.int64), np.zeros(0), np.zeros(0), np.zeros(4))
+        return (isinstance(task, GoalTask), self.goal, *constants, self._failed_one,
+                self.terms, self.success, self._reward, _ROW_0)
+
+    def _step_fused(self, actions: np.ndarray) -> np.ndarray:
         """:meth:`_step_batched` of one episode in one compiled call
         (:func:`~softhand_env.envs.fused.control_step`; with ideal sensors also the newest
-        observation frame)."""
+        observation frame; the task's score). Returns the contact flags (1,) (slip or
+        tension)."""
         p = self.physics
         if self._fused_pack is None:
             self._fused_pack = pack_arguments(*self._fused_args)
@@ -504,7 +483,7 @@ class EpisodeBatch:
         if not ok:
             raise ValueError(f"action must be finite (got {actions.tolist()})")
         self.reason[0] = REASON_NAMES[self._reason_code[0]]
-        return self._failed, self.grasped, self._bad, self._ctrl
+        return self._bad
 
     def _check_contact(
         self, impulse: np.ndarray, failed: np.ndarray, skip: np.ndarray | None
