@@ -41,6 +41,8 @@ from softhand_env.physics.model import DN_1, DT_1, X_OBJ
 
 #: Action dtypes the compiled one-episode step takes (others go through the batched pieces).
 _FUSED_DTYPES = (np.dtype(np.float32), np.dtype(np.float64))
+#: The termination reason of a contact that ended an episode, by whether a finger pulled.
+_CONTACT_NAMES = np.array(["slip", "tension"], dtype=object)
 #: The rows of one episode.
 _ROW_0 = np.zeros(1, dtype=np.int64)
 #: Info keys read from the read-out block: their columns (``take`` copies such a strided
@@ -339,13 +341,13 @@ class EpisodeBatch:
         failed, grasped, contact, ctrl = self._step_batched(actions, skip)
         if cfg.terminate_on_slip:
             failed = failed | contact
-        self.task.score(self._r.object_pose, self.goal, np.broadcast_to(ctrl, (n,)), failed,
+        self.task.score(self._r.object_pose, self.goal, ctrl, failed,
                         grasped, self._all_rows, self.terms, self.success, self._reward)
         # a fresh array (``failed`` may be the status buffer)
         terminated = (failed | self.success) if self.task.terminate_on_success else failed.copy()
         if cfg.terminate_on_slip and contact.any():
             k = np.flatnonzero(contact)
-            self.reason[k] = np.where(self.tension[k].any(axis=1), "tension", "slip").tolist()
+            self.reason[k] = _CONTACT_NAMES[self.tension[k].any(axis=1).view(np.int8)]
         if self.task.terminate_on_success:
             self.reason[terminated & ~failed] = "success"
         # observations: shift the history, write the newest frames
