@@ -5,7 +5,7 @@ per-episode arrays around it (goals, observations, reward terms, info values). O
 is :meth:`EpisodeBatch.step`::
 
     actions -> set-points -> physics.step (kernel, rollback, failure classification)
-            -> contact check (slip, tension) -> task.evaluate -> observation -> info values
+            -> contact check (slip, tension) -> task.score -> observation -> info values
 
 :class:`~softhand_env.envs.SoftHandEnv` is N = 1 of it (its ``info`` is row 0 of
 :meth:`EpisodeBatch.info_values`); :class:`~softhand_env.envs.SoftHandVectorEnv` is N
