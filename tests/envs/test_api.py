@@ -648,6 +648,42 @@ def test_a_failed_step_is_never_a_success():
     np.testing.assert_array_equal(batch, [True, False, False])
 
 
+def test_goal_task_terms_follow_the_reward_formula_for_scalars_and_broadcast_batches():
+    """evaluate (the compiled score_rows) against the module's formula: reward_goal =
+    w exp(-sum |p - g| / scale), the success, control and failure terms; scalars give
+    Python floats and a bool, arrays the arguments' broadcast shape."""
+    from softhand_env.envs.tasks import make_task
+
+    task = make_task("pose")
+    (tx, tt) = task.targets
+    rng = np.random.default_rng(5)
+    x = rng.uniform(-2e-3, 2e-3, (3, 4))
+    th = rng.uniform(-0.03, 0.03, (3, 4))
+    goal = (rng.uniform(-2e-3, 2e-3, (1, 4)), 0.01)
+    ctrl = rng.uniform(0, 1, (3, 1))
+    failed = rng.uniform(size=(3, 4)) < 0.2
+    grasped = np.array(True)
+    (r_goal, r_success, r_ctrl, r_failure), success = task.evaluate(
+        (x, 0.075, th), goal, ctrl, failed, grasped)
+    dx, dth = np.abs(x - goal[0]), np.abs(th - goal[1])
+    within = (dx <= tx.tolerance) & (dth <= tt.tolerance) & ~failed
+    assert r_goal.shape == success.shape == (3, 4)
+    expected = task.goal_weight * np.exp(-(dx / tx.scale + dth / tt.scale))
+    np.testing.assert_allclose(r_goal, expected, rtol=1e-15)
+    np.testing.assert_array_equal(success, within)
+    np.testing.assert_array_equal(r_success, task.success_weight * within)
+    np.testing.assert_array_equal(r_ctrl, np.broadcast_to(-task.ctrl_weight * ctrl, (3, 4)))
+    np.testing.assert_array_equal(r_failure, -task.failure_weight * failed)
+    terms, ok = task.evaluate((0.001, 0.075, 0.01), (0.001, 0.0105), 0.25, False, True)
+    assert all(type(t) is float for t in terms) and ok is True
+    assert math.isclose(terms[0], task.goal_weight * math.exp(-0.0005 / tt.scale),
+                        rel_tol=1e-15)
+    with pytest.raises(ValueError, match="goal must have 2 coordinates"):
+        task.evaluate((0.0, 0.075, 0.0), (0.0,), 0.0, False, True)
+    with pytest.raises(AttributeError):
+        task.goal_weight = 2.0  # type: ignore[misc]
+
+
 def test_version_history_lists_every_semantic_change():
     """The Version History names every semantic change of the ids: slip termination
     on by default, ``is_success`` False on a failed step, and v1 with each of its keywords
