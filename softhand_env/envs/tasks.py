@@ -37,6 +37,7 @@ from numba import njit
 from softhand_env.envs.observation import ANGLE_SCALE, OBS_BOUND, POSITION_SCALE
 from softhand_env.envs.options import check_keyword
 from softhand_env.envs.task_configs import TASK_TARGETS, load_task_config
+from softhand_env.physics import jit_cache  # noqa: F401  (the package stamp on cached kernels)
 from softhand_env.physics.params import is_finite_real
 
 #: Constructor keywords that configure a goal task (``None`` in the env signature = task config).
