@@ -259,11 +259,9 @@ def _step_on_this_thread(SRC, Y, U, PRM, TIME, n, ros2, H, ch_limit, dn_limit, b
     :func:`_finish_step`, into the outputs FLAGS, DIAG, FAILED, GRASPED, REASON (the
     shapes of :class:`StepStatus`). Returns False, with nothing changed, if SRC is not
     finite."""
-    if not _set_setpoints(SRC, U):
+    y_prev = np.empty_like(Y)
+    if not _prepare_step(SRC, U, Y, y_prev, FLAGS, DIAG, np.zeros(Y.shape[0], dtype=np.bool_)):
         return False
-    y_prev = Y.copy()
-    FLAGS[:] = 0
-    DIAG[:] = 0.0
     if ros2:
         rosenbrock.advance_batch_serial(Y, U, PRM, n, H, ch_limit, DIAG, FLAGS)
     else:
@@ -354,9 +352,15 @@ def fill_readouts(Y, U, PRM, READ):
     """The read-outs of the states Y (N, 20) under the set-points U (N, 2) (parameters PRM)
     into the block READ (N, :data:`READ_SIZE`) (:meth:`HandReadouts.of_block`)."""
     for s in range(Y.shape[0]):
-        READ[s, :NY] = Y[s]
-        READ[s, READ_SETPOINT : READ_SETPOINT + 2] = U[s]
-    pid_torques_batch(Y, U, PRM, READ[:, READ_TORQUE : READ_TORQUE + 2])
+        _fill_readout_row(Y, U, PRM, READ, s)
+
+
+@njit(cache=True, inline="always")
+def _fill_readout_row(Y, U, PRM, READ, s):
+    """The read-outs of hand ``s`` into row ``s`` of READ (:func:`fill_readouts`)."""
+    READ[s, :NY] = Y[s]
+    READ[s, READ_SETPOINT : READ_SETPOINT + 2] = U[s]
+    pid_torques(Y[s], U[s], PRM[s], READ[s, READ_TORQUE : READ_TORQUE + 2])
 
 
 @njit(cache=True)
@@ -364,10 +368,7 @@ def fill_readout_rows(Y, U, PRM, ROWS, READ):
     """:func:`fill_readouts` of the hands ROWS (int (K,)) only; the other rows of READ are
     left as they are."""
     for k in range(ROWS.shape[0]):
-        s = ROWS[k]
-        READ[s, :NY] = Y[s]
-        READ[s, READ_SETPOINT : READ_SETPOINT + 2] = U[s]
-        pid_torques(Y[s], U[s], PRM[s], READ[s, READ_TORQUE : READ_TORQUE + 2])
+        _fill_readout_row(Y, U, PRM, READ, ROWS[k])
 
 
 class HandPhysics:
