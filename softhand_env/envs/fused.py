@@ -122,17 +122,9 @@ def control_step(A, PREV, READ, ros2, H, kind, max_delta, mid, half, low, high, 
     else:
         _step_on_this_thread(SRC, Y, U, PRM, TIME, n, ros2, H, ch_limit, dn_limit,
                              base_limit, FLAGS, DIAG, FAILED, GRASPED, REASON)
-        OUT_FLAGS[0] = FLAGS[0]
-        OUT_ERROR[0, 0] = DIAG[0, 0]
-        OUT_ERROR[0, 1] = DIAG[0, 1]
-        OUT_FAILED[0] = FAILED[0]
-        OUT_GRASPED[0] = GRASPED[0]
-        OUT_REASON[0] = REASON[0]
-        friction.check_contact(DIAG[:, IMPULSE_OFFSET : IMPULSE_OFFSET + 4], MU, FAILED,
-                               NO_SKIP, IMPULSE, RATIO, TENSION, CONTACT)
-    fill_readouts(Y, U, PRM, READ)
-    validity.validated_rows(READ[:, DN_1 : DT_1 + 2], READ[:, TH_1 : TH_1 + 2],
-                            READ[:, X_OBJ : X_OBJ + 3], RADIUS, VALIDATED)
+    record_step(window == 0, FLAGS, DIAG, FAILED, GRASPED, REASON, MU, NO_SKIP, Y, U, PRM,
+                READ, RADIUS, VALIDATED, OUT_FLAGS, OUT_ERROR, OUT_FAILED, OUT_GRASPED,
+                OUT_REASON, IMPULSE, RATIO, TENSION, CONTACT)
     if observe:
         o = OBS[0]
         for j in range(history - 1, frame - 1, -1):
@@ -146,6 +138,34 @@ def control_step(A, PREV, READ, ros2, H, kind, max_delta, mid, half, low, high, 
         score_rows(READ[:, X_OBJ : X_OBJ + 3], GOAL, CTRL, FAILED_ONE, OUT_GRASPED, ROW, INDEX,
                    TOLERANCE, SCALE, WEIGHTS, TERMS, SUCCESS, REWARD)
     return True
+
+
+@njit(cache=True)
+def record_step(outcome, FLAGS, DIAG, FAILED, GRASPED, REASON, MU, SKIP, Y, U, PRM, READ,
+                RADIUS, VALIDATED, OUT_FLAGS, OUT_ERROR, OUT_FAILED, OUT_GRASPED, OUT_REASON,
+                IMPULSE, RATIO, TENSION, CONTACT):
+    """After a physics step of N hands, in one compiled call: with ``outcome`` (a step
+    without slip windows, whose accounting writes these itself) the physics' status FLAGS,
+    DIAG, FAILED, GRASPED, REASON (:class:`~softhand_env.physics.StepStatus`' arrays) into
+    OUT_FLAGS, OUT_ERROR (N, 2) (max |C^H| in m, max |C^N| in m/s), OUT_FAILED,
+    OUT_GRASPED, OUT_REASON (failure code), and the contact check against MU (N,) (hands of
+    SKIP, bool (N,), never flagged) into IMPULSE (N, 4) (N s), RATIO (N, 2), TENSION (N, 2),
+    CONTACT (N,) (:func:`~softhand_env.physics.friction.check_contact`); always the
+    read-outs of the states Y, set-points U, parameters PRM into READ (N, ``READ_SIZE``)
+    and the validated box (fingertip radius RADIUS (N,)) into VALIDATED (N, 2)."""
+    if outcome:
+        for s in range(FLAGS.shape[0]):
+            OUT_FLAGS[s] = FLAGS[s]
+            OUT_ERROR[s, 0] = DIAG[s, 0]
+            OUT_ERROR[s, 1] = DIAG[s, 1]
+            OUT_FAILED[s] = FAILED[s]
+            OUT_GRASPED[s] = GRASPED[s]
+            OUT_REASON[s] = REASON[s]
+        friction.check_contact(DIAG[:, IMPULSE_OFFSET : IMPULSE_OFFSET + 4], MU, FAILED,
+                               SKIP, IMPULSE, RATIO, TENSION, CONTACT)
+    fill_readouts(Y, U, PRM, READ)
+    validity.validated_rows(READ[:, DN_1 : DT_1 + 2], READ[:, TH_1 : TH_1 + 2],
+                            READ[:, X_OBJ : X_OBJ + 3], RADIUS, VALIDATED)
 
 
 @njit(cache=True)
@@ -171,6 +191,35 @@ def restart_rows(Y, U, PRM, ROWS, READ, RADIUS, VALIDATED, ERROR, GRASPED, obser
                          r[:, READ_SETPOINT : READ_SETPOINT + 2],
                          r[:, READ_TORQUE : READ_TORQUE + 2], r[:, DN_1 : DT_1 + 2], tactile,
                          OBS[s : s + 1])
+
+
+@njit(cache=True)
+def write_starts(ROWS, SETPOINTS, LAT, GOALS, MUS, RADII, LATENCY, SENT, GOAL, MU, RADIUS,
+                 TERMS, FLAGS, IMPULSE, RATIO, TENSION):
+    """The episode batch's arrays of the episodes ROWS (int (K,)) just started, in one
+    compiled call: row k's latency LAT[k] (control steps), every earlier command SENT (N, L,
+    2) = its first set-points SETPOINTS[k] (rad), goal GOALS[k] (SI), friction coefficient
+    MUS[k] and fingertip radius RADII[k] (m) into LATENCY, SENT, GOAL, MU, RADIUS; the
+    reward TERMS (T, N), FLAGS, contact IMPULSE (N, 4), friction RATIO (N, 2) and TENSION
+    (N, 2) of those rows cleared. The other rows are left as they are."""
+    for k in range(ROWS.shape[0]):
+        s = ROWS[k]
+        LATENCY[s] = LAT[k]
+        for j in range(SENT.shape[1]):
+            SENT[s, j, 0] = SETPOINTS[k, 0]
+            SENT[s, j, 1] = SETPOINTS[k, 1]
+        for t in range(GOAL.shape[1]):
+            GOAL[s, t] = GOALS[k, t]
+        MU[s] = MUS[k]
+        RADIUS[s] = RADII[k]
+        for t in range(TERMS.shape[0]):
+            TERMS[t, s] = 0.0
+        FLAGS[s] = 0
+        for j in range(4):
+            IMPULSE[s, j] = 0.0
+        for f in range(2):
+            RATIO[s, f] = 0.0
+            TENSION[s, f] = False
 
 
 @structref.register

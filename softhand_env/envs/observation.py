@@ -90,21 +90,20 @@ def observe_rows(theta, omega, setpoint, torque, deformation, tactile, out):
     out : ndarray, shape (N, >= frame size)
         Output (any float dtype).
     """
-    for s in range(out.shape[0]):
-        o = out[s]
-        o[0] = _clip(theta[s, 0] / ANGLE_SCALE)
-        o[1] = _clip(theta[s, 1] / ANGLE_SCALE)
-        o[2] = _clip(omega[s, 0] / VELOCITY_SCALE)
-        o[3] = _clip(omega[s, 1] / VELOCITY_SCALE)
-        o[4] = _clip(setpoint[s, 0] / ANGLE_SCALE)
-        o[5] = _clip(setpoint[s, 1] / ANGLE_SCALE)
-        o[6] = _clip(torque[s, 0] / TORQUE_SCALE)
-        o[7] = _clip(torque[s, 1] / TORQUE_SCALE)
+    for s in range(out.shape[0]):  # element by element: a row view per hand costs more
+        out[s, 0] = _clip(theta[s, 0] / ANGLE_SCALE)
+        out[s, 1] = _clip(theta[s, 1] / ANGLE_SCALE)
+        out[s, 2] = _clip(omega[s, 0] / VELOCITY_SCALE)
+        out[s, 3] = _clip(omega[s, 1] / VELOCITY_SCALE)
+        out[s, 4] = _clip(setpoint[s, 0] / ANGLE_SCALE)
+        out[s, 5] = _clip(setpoint[s, 1] / ANGLE_SCALE)
+        out[s, 6] = _clip(torque[s, 0] / TORQUE_SCALE)
+        out[s, 7] = _clip(torque[s, 1] / TORQUE_SCALE)
         if tactile:
-            o[8] = _clip(deformation[s, 0] / DN_SCALE)
-            o[9] = _clip(deformation[s, 1] / DN_SCALE)
-            o[10] = _clip(deformation[s, 2] / DT_SCALE)
-            o[11] = _clip(deformation[s, 3] / DT_SCALE)
+            out[s, 8] = _clip(deformation[s, 0] / DN_SCALE)
+            out[s, 9] = _clip(deformation[s, 1] / DN_SCALE)
+            out[s, 10] = _clip(deformation[s, 2] / DT_SCALE)
+            out[s, 11] = _clip(deformation[s, 3] / DT_SCALE)
 
 
 class ObservationLayout:

@@ -22,13 +22,19 @@ import numpy as np
 
 from softhand_env.envs.actions import delay_setpoints
 from softhand_env.envs.config import EnvConfig
-from softhand_env.envs.fused import control_step_packed, pack_arguments, restart_rows
+from softhand_env.envs.fused import (
+    control_step_packed,
+    pack_arguments,
+    record_step,
+    restart_rows,
+    write_starts,
+)
 from softhand_env.envs.observation import add_frame_noise, observe_rows
 from softhand_env.envs.sensors import SensorState
 from softhand_env.envs.start import start_episode
 from softhand_env.envs.tasks import GoalTask
 from softhand_env.envs.windows import SlipWindows
-from softhand_env.physics import friction, validity
+from softhand_env.physics import validity
 from softhand_env.physics.hand import (
     READ_SETPOINT,
     READ_SIZE,
@@ -199,13 +205,15 @@ class EpisodeBatch:
         self._fused_pack: Any = None  # fused.Arguments of _fused_args, built on first use
         self._rows0 = self._rows(0)  # views, as info reads row 0 every step of a single env
         self._reads0 = self._read_rows0()
+        self._info_views()
         if self._fused:
             self._fused_args = self._fused_arguments()
 
     def __getstate__(self) -> dict[str, Any]:
         state = self.__dict__.copy()
         state["_fused_pack"] = None  # a compiled record does not pickle; rebuilt on use
-        for views in ("_r", "_read_views", "_rows0", "_reads0"):  # views unpickle as copies
+        # views unpickle as copies: these are rebuilt on unpickling
+        for views in ("_r", "_read_views", "_rows0", "_reads0", "_info_keys", "_info_copied"):
             del state[views]
         return state
 
@@ -215,6 +223,15 @@ class EpisodeBatch:
         self._r = self._read_views
         self._rows0 = self._rows(0)
         self._reads0 = self._read_rows0()
+        self._info_views()
+
+    def _info_views(self) -> None:
+        """The key order of :meth:`info_values` and the (key, array) pairs it copies as they
+        are (the read-out columns and the reward terms are copied as blocks)."""
+        arrays = self._info_arrays()
+        self._info_keys = tuple(arrays)
+        self._info_copied = tuple((key, value) for key, value in arrays.items()
+                                  if key not in _READ_COLUMNS and key not in self.task.terms)
 
     # ------------------------------------------------------------------------------ reset
     def start(self, i: int, rng: np.random.Generator | None, goal: Any = None) -> None:
@@ -235,18 +252,14 @@ class EpisodeBatch:
         starts = [start_episode(self.cfg, rng, None if goals is None else goals[k])
                   for k, rng in enumerate(generators)]
         setpoints = np.array([s.setpoint for s in starts])
-        self.physics.reset_hands(rows, np.array([s.state for s in starts]), setpoints,
-                                 [s.params for s in starts])
-        self.latency[rows] = [s.latency for s in starts]
-        self._sent[rows] = setpoints[:, None]  # every earlier command: the grasp set-points
-        self.goal[rows] = [s.goal for s in starts]
-        self.mu[rows] = [s.params.mu for s in starts]
-        self.radius[rows] = [s.params.a for s in starts]
-        self.terms[:, rows] = 0.0
-        self.flags[rows] = 0
-        self.contact_impulse[rows] = 0.0
-        self.friction_ratio[rows] = 0.0
-        self.tension[rows] = False
+        params = [s.params for s in starts]
+        self.physics.reset_hands(rows, np.array([s.state for s in starts]), setpoints, params)
+        # every earlier command: the grasp set-points
+        write_starts(rows, setpoints, np.array([s.latency for s in starts], dtype=np.int64),
+                     np.array([s.goal for s in starts]).reshape(len(rows), -1),
+                     np.array([p.mu for p in params]), np.array([p.a for p in params]),
+                     self.latency, self._sent, self.goal, self.mu, self.radius, self.terms,
+                     self.flags, self.contact_impulse, self.friction_ratio, self.tension)
         self.reason[rows] = None
         if self.windows is not None:
             self.windows.restart(rows)
@@ -417,26 +430,28 @@ class EpisodeBatch:
             u = self._delay(u)
         else:
             u, ctrl = cfg.actions.setpoints(actions, self._r.setpoint)  # the last commanded
-        status: Any
+        p = self.physics
         if self.windows is None:
-            status = self.physics.step(u, cfg.n_substeps, strict=False, skip=skip,
-                                       out=self._status)
-            failed, grasped = status.failed, status.grasped
-            contact = self._check_contact(status.impulse, failed, skip)
-        else:
-            status = self.windows.step(self.physics, u, cfg.n_substeps, self.mu,
-                                       cfg.terminate_on_slip, skip)
-            failed, grasped, contact = status.failed, status.grasped, status.contact
-            self.contact_impulse[:] = status.impulse
-            self.friction_ratio[:] = status.friction_ratio
-            self.tension[:] = status.tension
-        self.physics.read_into(self._read_block)
+            self.physics.step(u, cfg.n_substeps, strict=False, skip=skip, out=self._status)
+            # the status, the contact check, read-outs and validated box in one compiled call
+            record_step(True, *self._status.arrays(), self.mu,
+                        self._no_skip if skip is None else skip, *p.step_arrays()[:3],
+                        self._read_block, self.radius, self.validated, self.flags,
+                        self.constraint_error, self._failed, self.grasped, self._reason_code,
+                        self.contact_impulse, self.friction_ratio, self.tension, self._bad)
+            np.take(REASON_NAMES, self._reason_code, out=self.reason)
+            return self._failed, self.grasped, self._bad, ctrl
+        status = self.windows.step(p, u, cfg.n_substeps, self.mu, cfg.terminate_on_slip, skip)
+        self.contact_impulse[:] = status.impulse
+        self.friction_ratio[:] = status.friction_ratio
+        self.tension[:] = status.tension
+        p.read_into(self._read_block)
         self._refresh_validated()
-        self.grasped[:] = grasped
+        self.grasped[:] = status.grasped
         self.flags[:] = status.flags
         self.constraint_error[:] = status.constraint_error
         self.reason[:] = status.reason
-        return failed, grasped, contact, ctrl
+        return status.failed, status.grasped, status.contact, ctrl
 
     def _fused_arguments(self) -> tuple[Any, ...]:
         """The arguments of :func:`~softhand_env.envs.fused.control_step` after the first
@@ -487,19 +502,6 @@ class EpisodeBatch:
         self.reason[0] = REASON_NAMES[self._reason_code[0]]
         return self._bad
 
-    def _check_contact(
-        self, impulse: np.ndarray, failed: np.ndarray, skip: np.ndarray | None
-    ) -> np.ndarray:
-        """Record the step's contact impulses (N, 4), friction ratios and tension; return
-        bool (N,) (overwritten by the next step): environments whose contact pulled or needed
-        more friction than their mu, among those not failed otherwise (and not skipped). A
-        diverged step (rolled back) may carry non-finite impulses: they read 0 (its ratio
-        inf), so info holds no NaN."""
-        friction.check_contact(impulse, self.mu, failed,
-                               self._no_skip if skip is None else skip, self.contact_impulse,
-                               self.friction_ratio, self.tension, self._bad)
-        return self._bad
-
     def _delay(self, u: np.ndarray) -> np.ndarray:
         """Record the commanded set-points ``u`` (N, 2); return those to apply this step: the
         ones commanded ``latency`` steps ago (see the class doc; overwritten by the next
@@ -527,9 +529,13 @@ class EpisodeBatch:
         arrays.
         """
         block = self._read_block
-        return {key: value.copy() if key not in _READ_COLUMNS
-                else block.take(_READ_COLUMNS[key], axis=1)
-                for key, value in self._info_arrays().items()}
+        values = {key: value.copy() for key, value in self._info_copied}
+        for key, columns in _READ_COLUMNS.items():
+            values[key] = block.take(columns, axis=1)
+        terms = self.terms.copy()  # one fresh block, one row per term
+        for k, name in enumerate(self.task.terms):
+            values[name] = terms[k]
+        return {key: values[key] for key in self._info_keys}
 
     def info(self, i: int = 0) -> dict[str, Any]:
         """``info`` of environment ``i`` as a single environment returns it: the row i of

@@ -110,6 +110,7 @@ class SoftHandVectorEnv(VectorEnv):
         self._steps = np.zeros(n, dtype=np.int64)
         self._autoreset = np.zeros(n, dtype=bool)
         self._was_reset = np.zeros(n, dtype=bool)
+        self._all_reset = False  # every environment reset once (then _was_reset stays True)
         self._rngs: list[np.random.Generator | None] = [None] * n
         self._seeds: list[int | None] = [None] * n
         self._renderer: SceneRenderer | None = None
@@ -192,18 +193,21 @@ class SoftHandVectorEnv(VectorEnv):
         self, actions: np.ndarray
     ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, dict[str, Any]]:
         n = self.num_envs
-        if not self._was_reset.all():
-            raise ResetNeeded(
-                "Cannot call step() before reset() of every environment "
-                f"(never reset: {np.flatnonzero(~self._was_reset).tolist()})"
-            )
+        if not self._all_reset:
+            if not self._was_reset.all():
+                raise ResetNeeded(
+                    "Cannot call step() before reset() of every environment "
+                    f"(never reset: {np.flatnonzero(~self._was_reset).tolist()})"
+                )
+            self._all_reset = True
         actions = action_array(actions, (n, 2))
         resetting = (
             self._autoreset.copy()
             if self.autoreset_mode == AutoresetMode.NEXT_STEP
             else np.zeros(n, dtype=bool)
         )
-        if resetting.any():
+        restart = bool(resetting.any())
+        if restart:
             actions = np.array(actions, dtype=np.float64)
             actions[resetting] = 0.0  # ignored: these environments restart (as in Sync)
         batch = self._batch
@@ -211,12 +215,12 @@ class SoftHandVectorEnv(VectorEnv):
         self._steps += 1
         truncated = self._steps >= self.max_episode_steps
         # NextStep: environments that ended on the previous step restart now
-        if resetting.any():
+        if restart:
             self._reset_rows(resetting)
-        rewards[resetting] = 0.0
-        terminated[resetting] = False
-        truncated[resetting] = False
-        infos = self._infos(np.ones(n, dtype=bool))
+            rewards[resetting] = 0.0
+            terminated[resetting] = False
+            truncated[resetting] = False
+        infos = self._infos()
         done = terminated | truncated
         if self.autoreset_mode == AutoresetMode.SAME_STEP and done.any():
             infos = self._same_step_reset(done, infos)
@@ -237,26 +241,31 @@ class SoftHandVectorEnv(VectorEnv):
                 kept[mask] = value[mask]
                 final_info[key], final_info[f"_{key}"] = kept, mask
         self._reset_rows(done)
-        infos = self._infos(np.ones(n, dtype=bool))
+        infos = self._infos()
         infos["final_obs"], infos["_final_obs"] = final_obs, done.copy()
         infos["final_info"], infos["_final_info"] = final_info, done.copy()
         return infos
 
     # ---------------------------------------------------------------------------- helpers
-    def _infos(self, mask: np.ndarray) -> dict[str, Any]:
-        """Batched info (each key with its ``_key`` mask, as :class:`SyncVectorEnv` builds)."""
-        infos: dict[str, Any] = {}
-        full = bool(mask.all())
+    def _infos(self, mask: np.ndarray | None = None) -> dict[str, Any]:
+        """Batched info of the environments of ``mask`` (bool (N,); None: all), each key
+        with its ``_key`` mask, as :class:`SyncVectorEnv` builds it."""
         values = self._batch.info_values()
-        masks = np.empty((len(values), mask.size), dtype=bool)  # one row per key, none shared
-        masks[:] = mask
-        for (key, value), key_mask in zip(values.items(), masks, strict=True):
-            if not full:
+        # one mask row per key, none shared
+        if mask is None or mask.all():
+            masks = np.ones((len(values), self.num_envs), dtype=bool)
+        else:
+            masks = np.empty((len(values), mask.size), dtype=bool)
+            masks[:] = mask
+            for key, value in values.items():
                 kept = np.full_like(value, None) if value.dtype == object else np.zeros_like(value)
                 kept[mask] = value[mask]
-                value = kept
+                values[key] = kept
+        mask_keys = self._mask_keys
+        infos: dict[str, Any] = {}
+        for (key, value), key_mask in zip(values.items(), masks, strict=True):
             infos[key] = value
-            infos[self._mask_keys[key]] = key_mask
+            infos[mask_keys[key]] = key_mask
         return infos
 
     @property
