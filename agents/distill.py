@@ -79,6 +79,7 @@ from agents.sb3.training import (
     start_from,
 )
 from softhand_env.envs.observation import ObservationLayout
+from softhand_env.envs.tasks import REWARD_KWARGS
 
 #: Dict-observation key of the blind part (what the student reads).
 BLIND_KEY = "observation"
@@ -169,10 +170,11 @@ def check_pair(teacher: ModelPolicy, env_id: str, hp: dict[str, Any],
     """The student's env keywords and the teacher's :data:`VIEW_KEYS` keywords.
 
     Checks that the teacher plays the same env (same task, keywords besides
-    :data:`VIEW_KEYS`, wrappers) with the privileged observation and that the student's
-    observation contains the teacher's (at least as many frames; tactile entries if the
-    teacher's has them). With ``blind_teacher`` the teacher must instead be a blind policy
-    (no ``privileged_obs``) and the observations need not contain each other (the rollouts
+    :data:`VIEW_KEYS` and the reward's :data:`~softhand_env.envs.tasks.REWARD_KWARGS`,
+    wrappers) with the privileged observation and that the student's observation contains
+    the teacher's (at least as many frames; tactile entries if the teacher's has them). With
+    ``blind_teacher`` the teacher must instead be a blind policy (no ``privileged_obs``) and
+    the observations need not contain each other (the rollouts
     read both views, :func:`rollout_layout`). UserError otherwise.
     """
     if teacher.env_id != env_id:
@@ -190,9 +192,14 @@ def check_pair(teacher: ModelPolicy, env_id: str, hp: dict[str, Any],
         raise UserError("the student reads the plain blind observation: leave privileged_obs "
                         "and goal_obs out of its env_kwargs")
     t_view = {key: t_kwargs.pop(key) for key in VIEW_KEYS if key in t_kwargs}
-    if t_kwargs != {k: v for k, v in s_kwargs.items() if k not in VIEW_KEYS}:
+    # the rollouts score nothing: a teacher trained on another reward plays the same task
+    same_t, same_s = ({k: v for k, v in kwargs.items()
+                       if k not in VIEW_KEYS and k not in REWARD_KWARGS}
+                      for kwargs in (t_kwargs, s_kwargs))
+    if same_t != same_s:
         raise UserError(f"teacher and student env_kwargs differ (besides privileged_obs, "
-                        f"history_len and obs_mode): {t_kwargs} vs {s_kwargs}")
+                        f"history_len, obs_mode and the reward's keywords): {t_kwargs} vs "
+                        f"{s_kwargs}")
     t_layout, s_layout = view_layout(t_view), view_layout(s_kwargs)
     if not blind_teacher and s_layout.history_len < t_layout.history_len:
         raise UserError(f"the student's history_len ({s_layout.history_len}) must be at least "

@@ -55,6 +55,17 @@ TASK_KWARGS = (
     "terminate_on_success",
 )
 
+#: The keywords of :data:`TASK_KWARGS` that change the reward only (not the goals, success,
+#: termination or anything observed): a policy trained under other values plays the same task.
+REWARD_KWARGS = (
+    "x_scale_mm",
+    "theta_scale_deg",
+    "goal_weight",
+    "success_weight",
+    "ctrl_weight",
+    "failure_weight",
+)
+
 #: Indices of x (m) and theta (rad) in an object pose (x, y, theta).
 POSE_X = 0
 POSE_THETA = 2

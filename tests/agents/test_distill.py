@@ -179,6 +179,17 @@ def test_student_with_a_longer_history_feeds_the_teacher_its_newest_frames(tmp_p
         **KWARGS, "privileged_obs": True, "max_delta_deg": 2.0})
     with pytest.raises(UserError, match="env_kwargs differ"):
         distill.check_pair(other, ENV_ID, hp)
+    # a teacher trained on another reward (tighter error scales) plays the same task
+    reward = SimpleNamespace(env_id=ENV_ID, env_wrapper=WRAPPER, env_kwargs={
+        **KWARGS, "privileged_obs": True, "x_scale_mm": 2.0, "theta_scale_deg": 2.0})
+    assert distill.check_pair(reward, ENV_ID, hp) == distill.check_pair(
+        SimpleNamespace(env_id=ENV_ID, env_wrapper=WRAPPER,
+                        env_kwargs={**KWARGS, "privileged_obs": True}), ENV_ID, hp)
+    # but not one whose goals or success rule differ
+    tolerance = SimpleNamespace(env_id=ENV_ID, env_wrapper=WRAPPER, env_kwargs={
+        **KWARGS, "privileged_obs": True, "x_tolerance_mm": 2.0})
+    with pytest.raises(UserError, match="env_kwargs differ"):
+        distill.check_pair(tolerance, ENV_ID, hp)
 
 
 def test_tactile_student_feeds_the_teacher_the_proprio_entries_of_its_frames():
