@@ -34,6 +34,7 @@ from softhand_env.envs.observation import observe_rows
 from softhand_env.envs.tasks import score_rows
 from softhand_env.envs.windows import _account
 from softhand_env.physics import (
+    failure,
     friction,
     jit_cache,  # noqa: F401  (the package stamp on cached kernels)
     validity,
@@ -174,9 +175,9 @@ def restart_rows(Y, U, PRM, ROWS, READ, RADIUS, VALIDATED, ERROR, GRASPED, obser
     """The start-state bookkeeping of the hands ROWS (int (K,)) just restarted, in one compiled
     call: their read-outs into READ (N, ``READ_SIZE``), validated box (fingertip radius
     RADIUS (N,)) into VALIDATED (N, 2), max |C^H| (m) and max |C^N| (m/s) into ERROR (N, 2),
-    grasp (both d_n > 0) into GRASPED (N,), and with ``observe`` (ideal sensors) the newest
-    frame (``tactile``: with the deformations) into the first columns of OBS (N, size). The
-    other rows are left as they are."""
+    grasp (:func:`~softhand_env.physics.failure.holds`) into GRASPED (N,), and with
+    ``observe`` (ideal sensors) the newest frame (``tactile``: with the deformations) into the
+    first columns of OBS (N, size). The other rows are left as they are."""
     fill_readout_rows(Y, U, PRM, ROWS, READ)
     for k in range(ROWS.shape[0]):
         s = ROWS[k]
@@ -185,7 +186,7 @@ def restart_rows(Y, U, PRM, ROWS, READ, RADIUS, VALIDATED, ERROR, GRASPED, obser
                                 r[:, X_OBJ : X_OBJ + 3], RADIUS[s : s + 1],
                                 VALIDATED[s : s + 1])
         _constraint_errors(Y, PRM, ROWS[k : k + 1], ERROR[s : s + 1])
-        GRASPED[s] = READ[s, DN_1] > 0.0 and READ[s, DN_2] > 0.0
+        GRASPED[s] = failure.holds(READ[s, DN_1], READ[s, DN_2])
         if observe:
             observe_rows(r[:, TH_1 : TH_1 + 2], r[:, NQ + TH_1 : NQ + TH_1 + 2],
                          r[:, READ_SETPOINT : READ_SETPOINT + 2],

@@ -44,6 +44,14 @@ REASONS = (
 )
 _DIVERGED = FLAG_NONFINITE | FLAG_CONSTRAINT
 
+@njit(cache=True, inline="always")
+def holds(dn1, dn2):
+    """The grasp rule: both fingertips compressed (d_n1, d_n2 > 0, m). A step's hand is
+    grasped when this holds and the step did not diverge (:func:`classify`); a start state
+    when it holds."""
+    return dn1 > 0.0 and dn2 > 0.0
+
+
 @njit(cache=True)
 def classify(FLAGS, Y, Y_PREV, PRM, DIAG, ch_limit, dn_limit, base_limit, FAILED, GRASPED,
              REASON):
@@ -100,7 +108,7 @@ def classify(FLAGS, Y, Y_PREV, PRM, DIAG, ch_limit, dn_limit, base_limit, FAILED
                     DIAG[s, j] = math.inf
         FLAGS[s] = f
         FAILED[s] = failed
-        GRASPED[s] = dn1 > 0.0 and dn2 > 0.0 and not diverged
+        GRASPED[s] = holds(dn1, dn2) and not diverged
         if f & FLAG_NONFINITE:
             REASON[s] = 1
         elif f & FLAG_CONSTRAINT:
