@@ -1,4 +1,4 @@
-"""The control step of one episode in one compiled call.
+"""The control step of one episode in one compiled call, and the compiled bookkeeping of a batch.
 
 :meth:`~softhand_env.envs.transition.EpisodeBatch.step` of a single episode (the single
 environment) runs the compiled pieces of a control step in one call of :func:`control_step`
@@ -19,6 +19,10 @@ twentieth of a ROS2 control step)::
 
 Each piece is the same compiled function the batched path calls, on the same arrays, so the
 numbers are bit for bit those of the batched path (``tests/envs/test_one_episode_step.py``).
+The batched path (:meth:`~softhand_env.envs.transition.EpisodeBatch.step`) records a step of N
+hands with :func:`record_step` (status, contact check, read-outs, validated box; the single
+episode's step calls it too) and starts episodes with :func:`write_starts` and
+:func:`restart_rows`.
 The arguments that stay the same over an episode batch's life (constants and the arrays
 written in place) travel in one :class:`Arguments` record (:func:`control_step_packed`):
 dispatching 49 arguments cost about 5 us a step, one record about 1 us.
