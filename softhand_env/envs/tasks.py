@@ -40,23 +40,8 @@ from softhand_env.envs.task_configs import TASK_TARGETS, load_task_config
 from softhand_env.physics import jit_cache  # noqa: F401  (the package stamp on cached kernels)
 from softhand_env.physics.params import is_finite_real
 
-#: Constructor keywords that configure a goal task (``None`` in the env signature = task config).
-TASK_KWARGS = (
-    "goal_x_range_mm",
-    "goal_theta_range_deg",
-    "x_tolerance_mm",
-    "theta_tolerance_deg",
-    "x_scale_mm",
-    "theta_scale_deg",
-    "goal_weight",
-    "success_weight",
-    "ctrl_weight",
-    "failure_weight",
-    "terminate_on_success",
-)
-
-#: The keywords of :data:`TASK_KWARGS` that change the reward only (not the goals, success,
-#: termination or anything observed): a policy trained under other values plays the same task.
+#: The goal task's keywords that change the reward only (not the goals, success, termination
+#: or anything observed): a policy trained under other values plays the same task.
 REWARD_KWARGS = (
     "x_scale_mm",
     "theta_scale_deg",
@@ -64,6 +49,16 @@ REWARD_KWARGS = (
     "success_weight",
     "ctrl_weight",
     "failure_weight",
+)
+
+#: Constructor keywords that configure a goal task (``None`` in the env signature = task config).
+TASK_KWARGS = (
+    "goal_x_range_mm",
+    "goal_theta_range_deg",
+    "x_tolerance_mm",
+    "theta_tolerance_deg",
+    *REWARD_KWARGS,
+    "terminate_on_success",
 )
 
 #: Indices of x (m) and theta (rad) in an object pose (x, y, theta).

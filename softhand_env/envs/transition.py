@@ -34,7 +34,6 @@ from softhand_env.envs.sensors import SensorState
 from softhand_env.envs.start import start_episode
 from softhand_env.envs.tasks import GoalTask
 from softhand_env.envs.windows import SlipWindows
-from softhand_env.physics import validity
 from softhand_env.physics.hand import (
     READ_SETPOINT,
     READ_SIZE,
@@ -430,27 +429,28 @@ class EpisodeBatch:
             u = self._delay(u)
         else:
             u, ctrl = cfg.actions.setpoints(actions, self._r.setpoint)  # the last commanded
-        p = self.physics
-        if self.windows is None:
-            self.physics.step(u, cfg.n_substeps, strict=False, skip=skip, out=self._status)
-            # the status, the contact check, read-outs and validated box in one compiled call
-            record_step(True, *self._status.arrays(), self.mu,
-                        self._no_skip if skip is None else skip, *p.step_arrays()[:3],
-                        self._read_block, self.radius, self.validated, self.flags,
-                        self.constraint_error, self._failed, self.grasped, self._reason_code,
-                        self.contact_impulse, self.friction_ratio, self.tension, self._bad)
+        p, windows = self.physics, self.windows
+        if windows is None:
+            p.step(u, cfg.n_substeps, strict=False, skip=skip, out=self._status)
+        else:
+            status = windows.step(p, u, cfg.n_substeps, self.mu, cfg.terminate_on_slip, skip)
+            self.contact_impulse[:] = status.impulse
+            self.friction_ratio[:] = status.friction_ratio
+            self.tension[:] = status.tension
+            self.grasped[:] = status.grasped
+            self.flags[:] = status.flags
+            self.constraint_error[:] = status.constraint_error
+            self.reason[:] = status.reason
+        # one compiled call: without slip windows the status and the contact check (the
+        # windows' accounting wrote those), always the read-outs and the validated box
+        record_step(windows is None, *self._status.arrays(), self.mu,
+                    self._no_skip if skip is None else skip, *p.step_arrays()[:3],
+                    self._read_block, self.radius, self.validated, self.flags,
+                    self.constraint_error, self._failed, self.grasped, self._reason_code,
+                    self.contact_impulse, self.friction_ratio, self.tension, self._bad)
+        if windows is None:
             np.take(REASON_NAMES, self._reason_code, out=self.reason)
             return self._failed, self.grasped, self._bad, ctrl
-        status = self.windows.step(p, u, cfg.n_substeps, self.mu, cfg.terminate_on_slip, skip)
-        self.contact_impulse[:] = status.impulse
-        self.friction_ratio[:] = status.friction_ratio
-        self.tension[:] = status.tension
-        p.read_into(self._read_block)
-        self._refresh_validated()
-        self.grasped[:] = status.grasped
-        self.flags[:] = status.flags
-        self.constraint_error[:] = status.constraint_error
-        self.reason[:] = status.reason
         return status.failed, status.grasped, status.contact, ctrl
 
     def _fused_arguments(self) -> tuple[Any, ...]:
@@ -577,13 +577,6 @@ class EpisodeBatch:
         :meth:`info` copies while the read-outs are that block's)."""
         v = self._read_views
         return v.object_pose[0], v.deformation[0], v.setpoint[0]
-
-    def _refresh_validated(self) -> None:
-        """Each fingertip inside the contact model's validated box (d_n <= 8 mm of a = 20 mm,
-        |theta_p| <= 30 deg; :mod:`softhand_env.physics.validity`), from the read-outs."""
-        r = self._r
-        validity.validated_rows(r.deformation, r.finger_angles, r.object_pose, self.radius,
-                                self.validated)
 
     def _info_arrays(self) -> dict[str, np.ndarray]:
         """The arrays behind :meth:`info_values` (not copied: callers copy)."""

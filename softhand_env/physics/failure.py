@@ -44,6 +44,7 @@ REASONS = (
 )
 _DIVERGED = FLAG_NONFINITE | FLAG_CONSTRAINT
 
+
 @njit(cache=True, inline="always")
 def holds(dn1, dn2):
     """The grasp rule: both fingertips compressed (d_n1, d_n2 > 0, m). A step's hand is
