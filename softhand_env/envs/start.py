@@ -1,7 +1,9 @@
 """Episode start: the paper's parallel point-contact state followed by a grasp phase.
 
 :func:`start_episode` draws an episode's parameters, grasp set-points and goal from the env's
-``np_random`` and returns its start state; both environments use it.
+``np_random`` and returns its start state; :func:`start_episodes` does the same for K episodes
+at once (what both environments call), drawing only the goals (and latencies) row by row when
+every episode starts from the one cached grasp state.
 
 :func:`grasp_state` holds the grasp set-points for ``n_substeps`` RK4 substeps from the
 paper's parallel point-contact state (``n_substeps = 0`` returns that state itself, as the
@@ -18,7 +20,7 @@ phase once per process and then cost a copy; randomised resets simulate it every
 from __future__ import annotations
 
 from collections import OrderedDict
-from collections.abc import Iterator
+from collections.abc import Iterator, Sequence
 from contextlib import contextmanager
 from typing import Any, NamedTuple
 
@@ -180,23 +182,100 @@ def start_episode(
             if fixed or attempt == MAX_DRAWS - 1:
                 raise
     sampled = cfg.task.sample_goal(rng)
-    if goal is None:
-        goal = sampled
-    else:
-        try:
-            goal = np.asarray(goal, dtype=np.float64).reshape(-1)
-        except (TypeError, ValueError, OverflowError):
-            raise ValueError(f"goal must be {sampled.size} finite numbers (SI units)") from None
-        if goal.shape != sampled.shape or not np.isfinite(goal).all():
-            raise ValueError(f"goal must be {sampled.size} finite numbers (SI units)")
-        for target, g in zip(cfg.task.targets, goal, strict=True):
-            if abs(g) > target.goal_range:
-                raise ValueError(
-                    f"goal {target.name} = {float(g)!r} is outside the task's range "
-                    f"[-{target.goal_range:g}, {target.goal_range:g}] (SI units)"
-                )
+    goal = sampled if goal is None else checked_goal(cfg, goal)
     params = cfg.randomization.sample_friction(params, rng)
     latency = 0
     if cfg.setpoint_latency > 0:
         latency = int(rng.integers(0, cfg.setpoint_latency + 1))
     return EpisodeStart(params, u0, goal, y, latency)
+
+
+def checked_goal(cfg: EnvConfig, goal: Any) -> np.ndarray:
+    """``goal`` as float (goal_dim,) (SI units); ``ValueError`` unless it has one finite entry
+    per target of the task within its goal range."""
+    size = len(cfg.task.targets)
+    try:
+        goal = np.asarray(goal, dtype=np.float64).reshape(-1)
+    except (TypeError, ValueError, OverflowError):
+        raise ValueError(f"goal must be {size} finite numbers (SI units)") from None
+    if goal.shape != (size,) or not np.isfinite(goal).all():
+        raise ValueError(f"goal must be {size} finite numbers (SI units)")
+    for target, g in zip(cfg.task.targets, goal, strict=True):
+        if abs(g) > target.goal_range:
+            raise ValueError(
+                f"goal {target.name} = {float(g)!r} is outside the task's range "
+                f"[-{target.goal_range:g}, {target.goal_range:g}] (SI units)"
+            )
+    return goal
+
+
+class EpisodeStarts(NamedTuple):
+    """:class:`EpisodeStart` of K episodes as arrays.
+
+    Attributes
+    ----------
+    params : list of HandParams
+        K parameter sets (the same object where they are the same).
+    setpoint : ndarray, shape (K, 2)
+        First set-points (rad).
+    goal : ndarray, shape (K, goal_dim)
+        Goals (SI units).
+    state : ndarray, shape (K, 20)
+        Start states.
+    latency : ndarray of int64, shape (K,)
+        Set-point latencies (control steps).
+    mu : ndarray, shape (K,)
+        Friction coefficients.
+    radius : ndarray, shape (K,)
+        Fingertip radii a (m).
+    """
+
+    params: list[HandParams]
+    setpoint: np.ndarray
+    goal: np.ndarray
+    state: np.ndarray
+    latency: np.ndarray
+    mu: np.ndarray
+    radius: np.ndarray
+
+
+def start_episodes(
+    cfg: EnvConfig,
+    rngs: Sequence[np.random.Generator],
+    goals: Sequence[Any] | None = None,
+) -> EpisodeStarts:
+    """:func:`start_episode` of K episodes, episode k drawing from ``rngs[k]`` (its goal
+    ``goals[k]`` if given): the same draws and numbers, bit for bit.
+
+    Without randomisation (nominal parameters, no grasp noise) and with the grasp cache on,
+    every episode starts from the one cached grasp state and only the goals (and latencies)
+    are drawn, row by row; otherwise each episode goes through :func:`start_episode`.
+    """
+    k = len(rngs)
+    fixed = not (cfg.randomization.params_active or cfg.reset_noise > 0)
+    if not (fixed and _CACHE_ON[0]):
+        starts = [start_episode(cfg, rng, None if goals is None else goals[j])
+                  for j, rng in enumerate(rngs)]
+        params = [s.params for s in starts]
+        return EpisodeStarts(
+            params, np.array([s.setpoint for s in starts]).reshape(k, 2),
+            np.array([s.goal for s in starts]).reshape(k, -1),
+            np.array([s.state for s in starts]).reshape(k, -1),
+            np.array([s.latency for s in starts], dtype=np.int64),
+            np.array([p.mu for p in params]), np.array([p.a for p in params]),
+        )
+    prm = cfg.params
+    y, _, _ = grasp_state(prm, cfg.grasp_setpoint, cfg.n_grasp, cfg.ch_limit, cfg.dn_limit,
+                          base_limit=cfg.base_limit)
+    goal = cfg.task.sample_goals(rngs)  # drawn even where a goal is given
+    if goals is not None:
+        for j, g in enumerate(goals):
+            goal[j] = checked_goal(cfg, g)
+    latency = np.zeros(k, dtype=np.int64)
+    if cfg.setpoint_latency > 0:
+        for j, rng in enumerate(rngs):
+            latency[j] = rng.integers(0, cfg.setpoint_latency + 1)
+    return EpisodeStarts(
+        [prm] * k, np.tile(cfg.grasp_setpoint, (k, 1)), goal, np.tile(y, (k, 1)), latency,
+        np.full(k, prm.mu), np.full(k, prm.a),
+    )

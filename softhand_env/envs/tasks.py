@@ -28,6 +28,7 @@ Reward of a goal task (every term is copied to ``info``; reward = sum of the ter
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -159,7 +160,11 @@ class Task:
 
     def sample_goal(self, rng: np.random.Generator) -> np.ndarray:
         """Draw a goal (SI units), shape (goal_dim,), from ``rng`` (the env's ``np_random``)."""
-        return np.zeros(0)
+        return self.sample_goals((rng,))[0]
+
+    def sample_goals(self, rngs: Sequence[np.random.Generator]) -> np.ndarray:
+        """:meth:`sample_goal` of K episodes, row k from ``rngs[k]``: shape (K, goal_dim)."""
+        return np.zeros((len(rngs), 0))
 
     def goal_observation(self, goal: np.ndarray) -> np.ndarray:
         """The goal scaled for the observation, shape (..., goal_dim)."""
@@ -284,11 +289,12 @@ class GoalTask(Task):
         low = -ranges
         return low, ranges - low
 
-    def sample_goal(self, rng: np.random.Generator) -> np.ndarray:
+    def sample_goals(self, rngs: Sequence[np.random.Generator]) -> np.ndarray:
         # rng.uniform(low, high) on arrays, as NumPy computes it (low + (high - low) * u from
         # the same doubles), without its broadcasting path (about 30 us a call)
         low, span = self._draw
-        return low + span * rng.random(low.shape)
+        return low + span * np.array([rng.random(low.size) for rng in rngs]).reshape(
+            len(rngs), low.size)
 
     def goal_observation(self, goal: np.ndarray) -> np.ndarray:
         scaled = np.asarray(goal, dtype=np.float64) / self._obs_scales

@@ -31,7 +31,7 @@ from softhand_env.envs.fused import (
 )
 from softhand_env.envs.observation import add_frame_noise, observe_rows
 from softhand_env.envs.sensors import SensorState
-from softhand_env.envs.start import start_episode
+from softhand_env.envs.start import start_episodes
 from softhand_env.envs.tasks import GoalTask
 from softhand_env.envs.windows import SlipWindows
 from softhand_env.physics.hand import (
@@ -248,17 +248,13 @@ class EpisodeBatch:
         draws from ``rngs[k]`` (its goal ``goals[k]`` if given), then every array is written
         at once; call :meth:`finish_reset` next."""
         generators = [_generator(rngs, k) for k in range(len(rows))]
-        starts = [start_episode(self.cfg, rng, None if goals is None else goals[k])
-                  for k, rng in enumerate(generators)]
-        setpoints = np.array([s.setpoint for s in starts])
-        params = [s.params for s in starts]
-        self.physics.reset_hands(rows, np.array([s.state for s in starts]), setpoints, params)
+        starts = start_episodes(self.cfg, generators, goals)
+        self.physics.reset_hands(rows, starts.state, starts.setpoint, starts.params)
         # every earlier command: the grasp set-points
-        write_starts(rows, setpoints, np.array([s.latency for s in starts], dtype=np.int64),
-                     np.array([s.goal for s in starts]).reshape(len(rows), -1),
-                     np.array([p.mu for p in params]), np.array([p.a for p in params]),
-                     self.latency, self._sent, self.goal, self.mu, self.radius, self.terms,
-                     self.flags, self.contact_impulse, self.friction_ratio, self.tension)
+        write_starts(rows, starts.setpoint, starts.latency, starts.goal, starts.mu,
+                     starts.radius, self.latency, self._sent, self.goal, self.mu, self.radius,
+                     self.terms, self.flags, self.contact_impulse, self.friction_ratio,
+                     self.tension)
         self.reason[rows] = None
         if self.windows is not None:
             self.windows.restart(rows)
