@@ -275,7 +275,9 @@ def start_episodes(
     if cfg.setpoint_latency > 0:
         for j, rng in enumerate(rngs):
             latency[j] = rng.integers(0, cfg.setpoint_latency + 1)
-    return EpisodeStarts(
-        [prm] * k, np.tile(cfg.grasp_setpoint, (k, 1)), goal, np.tile(y, (k, 1)), latency,
-        np.full(k, prm.mu), np.full(k, prm.a),
-    )
+    mu, radius = np.empty(k), np.empty(k)
+    mu.fill(prm.mu)
+    radius.fill(prm.a)
+    # ndarray.repeat and fill: the rows of np.tile / np.full, at a fraction of their call cost
+    return EpisodeStarts([prm] * k, cfg.grasp_setpoint[None].repeat(k, 0), goal,
+                         y[None].repeat(k, 0), latency, mu, radius)
