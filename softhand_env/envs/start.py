@@ -118,6 +118,12 @@ def grasp_state(
     return hit[0].copy(), hit[1], hit[2]
 
 
+def _nominal_start(cfg: EnvConfig) -> bool:
+    """True when every episode of ``cfg`` starts from the same grasp phase: nominal
+    parameters (nothing randomised) and no grasp set-point noise (its result is cached)."""
+    return not (cfg.randomization.params_active or cfg.reset_noise > 0)
+
+
 class EpisodeStart(NamedTuple):
     """Everything :func:`start_episode` draws and computes for one new episode.
 
@@ -165,7 +171,7 @@ def start_episode(
         ``ValueError`` unless it has one finite entry per target within the task's goal
         range (``goal_x_range_mm`` / ``goal_theta_range_deg``, in SI units).
     """
-    fixed = not (cfg.randomization.params_active or cfg.reset_noise > 0)
+    fixed = _nominal_start(cfg)
     cached = fixed and _CACHE_ON[0]
     for attempt in range(1 if fixed else MAX_DRAWS):
         params = cfg.randomization.sample_params(cfg.params, rng)
@@ -252,8 +258,7 @@ def start_episodes(
     are drawn, row by row; otherwise each episode goes through :func:`start_episode`.
     """
     k = len(rngs)
-    fixed = not (cfg.randomization.params_active or cfg.reset_noise > 0)
-    if not (fixed and _CACHE_ON[0]):
+    if not (_nominal_start(cfg) and _CACHE_ON[0]):
         starts = [start_episode(cfg, rng, None if goals is None else goals[j])
                   for j, rng in enumerate(rngs)]
         params = [s.params for s in starts]
