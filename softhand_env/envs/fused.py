@@ -30,6 +30,7 @@ dispatching 49 arguments cost about 5 us a step, one record about 1 us.
 
 from __future__ import annotations
 
+import numpy as np
 from numba import njit, types
 from numba.experimental import structref
 
@@ -46,6 +47,7 @@ from softhand_env.physics import (
 from softhand_env.physics.hand import (
     READ_SETPOINT,
     READ_TORQUE,
+    REASON_NAMES,
     _constraint_errors,
     _step_on_this_thread,
     fill_readout_rows,
@@ -53,6 +55,14 @@ from softhand_env.physics.hand import (
 )
 from softhand_env.physics.kernel import IMPULSE_OFFSET
 from softhand_env.physics.model import DN_1, DN_2, DT_1, NQ, TH_1, X_OBJ
+
+#: Ending code of an episode -> ``info["termination_reason"]``: 0 running (None), then the
+#: physics' failure codes (:data:`~softhand_env.physics.hand.REASON_NAMES`), then a contact
+#: that ended the episode (slip, or tension where a finger pulled) and success.
+ENDING_NAMES = np.array((*REASON_NAMES, "slip", "tension", "success"), dtype=object)
+ENDING_SLIP = len(REASON_NAMES)
+ENDING_TENSION = ENDING_SLIP + 1
+ENDING_SUCCESS = ENDING_SLIP + 2
 
 
 @njit(cache=True)
@@ -200,15 +210,17 @@ def restart_rows(Y, U, PRM, ROWS, READ, RADIUS, VALIDATED, ERROR, GRASPED, obser
 
 @njit(cache=True)
 def write_starts(ROWS, SETPOINTS, LAT, GOALS, MUS, RADII, LATENCY, SENT, GOAL, MU, RADIUS,
-                 TERMS, FLAGS, IMPULSE, RATIO, TENSION):
+                 TERMS, FLAGS, IMPULSE, RATIO, TENSION, ENDING):
     """The episode batch's arrays of the episodes ROWS (int (K,)) just started, in one
     compiled call: row k's latency LAT[k] (control steps), every earlier command SENT (N, L,
     2) = its first set-points SETPOINTS[k] (rad), goal GOALS[k] (SI), friction coefficient
     MUS[k] and fingertip radius RADII[k] (m) into LATENCY, SENT, GOAL, MU, RADIUS; the
-    reward TERMS (T, N), FLAGS, contact IMPULSE (N, 4), friction RATIO (N, 2) and TENSION
-    (N, 2) of those rows cleared. The other rows are left as they are."""
+    reward TERMS (T, N), FLAGS, contact IMPULSE (N, 4), friction RATIO (N, 2), TENSION
+    (N, 2) and ending code ENDING (N,) of those rows cleared. The other rows are left as they
+    are."""
     for k in range(ROWS.shape[0]):
         s = ROWS[k]
+        ENDING[s] = 0
         LATENCY[s] = LAT[k]
         for j in range(SENT.shape[1]):
             SENT[s, j, 0] = SETPOINTS[k, 0]
@@ -225,6 +237,21 @@ def write_starts(ROWS, SETPOINTS, LAT, GOALS, MUS, RADII, LATENCY, SENT, GOAL, M
         for f in range(2):
             RATIO[s, f] = 0.0
             TENSION[s, f] = False
+
+
+@njit(cache=True)
+def mark_endings(CONTACT, TENSION, TERMINATED, FAILED, on_contact, on_success, ENDING):
+    """The ending codes ENDING (N,) of a step whose failure codes it already holds (0 or a
+    code of :data:`~softhand_env.physics.hand.REASON_NAMES`), in one compiled call: with
+    ``on_contact`` (slip and tension end episodes) a CONTACT (N,) row becomes
+    :data:`ENDING_TENSION` if a finger pulled (TENSION (N, 2)), else :data:`ENDING_SLIP`; with
+    ``on_success`` a TERMINATED (N,) row without FAILED (N,) (slip and tension included when
+    they end episodes) becomes :data:`ENDING_SUCCESS`."""
+    for s in range(ENDING.shape[0]):
+        if on_contact and CONTACT[s]:
+            ENDING[s] = ENDING_TENSION if (TENSION[s, 0] or TENSION[s, 1]) else ENDING_SLIP
+        if on_success and TERMINATED[s] and not FAILED[s]:
+            ENDING[s] = ENDING_SUCCESS
 
 
 @structref.register

@@ -23,7 +23,12 @@ import numpy as np
 from softhand_env.envs.actions import delay_setpoints
 from softhand_env.envs.config import EnvConfig
 from softhand_env.envs.fused import (
+    ENDING_NAMES,
+    ENDING_SLIP,
+    ENDING_SUCCESS,
+    ENDING_TENSION,
     control_step_packed,
+    mark_endings,
     pack_arguments,
     record_step,
     restart_rows,
@@ -37,7 +42,6 @@ from softhand_env.envs.windows import SlipWindows
 from softhand_env.physics.hand import (
     READ_SETPOINT,
     READ_SIZE,
-    REASON_NAMES,
     HandPhysics,
     HandReadouts,
     StepStatus,
@@ -46,8 +50,6 @@ from softhand_env.physics.model import DN_1, DT_1, X_OBJ
 
 #: Action dtypes the compiled one-episode step takes (others go through the batched pieces).
 _FUSED_DTYPES = (np.dtype(np.float32), np.dtype(np.float64))
-#: The termination reason of a contact that ended an episode, by whether a finger pulled.
-_CONTACT_NAMES = np.array(["slip", "tension"], dtype=object)
 #: The rows of one episode.
 _ROW_0 = np.zeros(1, dtype=np.int64)
 #: Info keys read from the read-out block: their columns (``take`` copies such a strided
@@ -119,7 +121,9 @@ class EpisodeBatch:
         Fingers whose normal impulse of the last step was negative (False after a reset).
     grasped, success : ndarray of bool, shape (N,)
     reason : ndarray of object, shape (N,)
-        Termination reason of the last step (a failure name or ``"success"``), else None.
+        Termination reason of the last step (a failure name, ``"slip"``, ``"tension"`` or
+        ``"success"``), else None: a fresh array made from the ending codes kept per episode
+        (:data:`~softhand_env.envs.fused.ENDING_NAMES`).
     latency : ndarray of int64, shape (N,)
         Set-point latency of each episode in control steps (``setpoint_latency``; 0 without).
     sensing : SensorState or None
@@ -177,7 +181,7 @@ class EpisodeBatch:
         self.tension = np.zeros((n, 2), dtype=bool)
         self.grasped = np.zeros(n, dtype=bool)
         self.success = np.zeros(n, dtype=bool)
-        self.reason = np.full(n, None, dtype=object)
+        self._ending = np.zeros(n, dtype=np.int64)  # codes of ENDING_NAMES
         self.latency = np.zeros(n, dtype=np.int64)
         # set-points commanded in the last K steps, newest first (only with K > 0)
         self._sent = np.zeros((n, cfg.setpoint_latency, 2))
@@ -191,7 +195,6 @@ class EpisodeBatch:
         self._cmd = np.empty((n, 2))
         self._ctrl = np.empty(n)
         self._failed = np.zeros(n, dtype=bool)
-        self._reason_code = np.zeros(n, dtype=np.int64)
         self._active = np.zeros(n, dtype=bool)
         self._done = np.zeros(n, dtype=np.int64)
         self._substeps = np.zeros(n, dtype=np.int64)
@@ -230,7 +233,13 @@ class EpisodeBatch:
         arrays = self._info_arrays()
         self._info_keys = tuple(arrays)
         self._info_copied = tuple((key, value) for key, value in arrays.items()
-                                  if key not in _READ_COLUMNS and key not in self.task.terms)
+                                  if key not in _READ_COLUMNS and key not in self.task.terms
+                                  and key != "termination_reason")
+
+    @property
+    def reason(self) -> np.ndarray:
+        """Termination reason of the last step, object (N,) (see the class doc; fresh)."""
+        return np.take(ENDING_NAMES, self._ending)
 
     # ------------------------------------------------------------------------------ reset
     def start(self, i: int, rng: np.random.Generator | None, goal: Any = None) -> None:
@@ -254,8 +263,7 @@ class EpisodeBatch:
         write_starts(rows, starts.setpoint, starts.latency, starts.goal, starts.mu,
                      starts.radius, self.latency, self._sent, self.goal, self.mu, self.radius,
                      self.terms, self.flags, self.contact_impulse, self.friction_ratio,
-                     self.tension)
-        self.reason[rows] = None
+                     self.tension, self._ending)
         if self.windows is not None:
             self.windows.restart(rows)
         if self.sensing is not None:  # after every draw of start_episode
@@ -353,11 +361,8 @@ class EpisodeBatch:
                         grasped, self._all_rows, self.terms, self.success, self._reward)
         # a fresh array (``failed`` may be the status buffer)
         terminated = (failed | self.success) if self.task.terminate_on_success else failed.copy()
-        if cfg.terminate_on_slip and contact.any():
-            k = np.flatnonzero(contact)
-            self.reason[k] = _CONTACT_NAMES[self.tension[k].any(axis=1).view(np.int8)]
-        if self.task.terminate_on_success:
-            self.reason[terminated & ~failed] = "success"
+        mark_endings(contact, self.tension, terminated, failed, cfg.terminate_on_slip,
+                     self.task.terminate_on_success, self._ending)
         # observations: shift the history, write the newest frames
         if h > f:
             self.obs[:, f:h] = self.obs[:, : h - f]
@@ -398,9 +403,9 @@ class EpisodeBatch:
         success = bool(self.success[0])  # scored by the compiled step
         terminated = failed or (task.terminate_on_success and success)
         if contact:
-            self.reason[0] = "tension" if self.tension[0].any() else "slip"
+            self._ending[0] = ENDING_TENSION if self.tension[0].any() else ENDING_SLIP
         elif terminated and not failed:
-            self.reason[0] = "success"
+            self._ending[0] = ENDING_SUCCESS
         layout = cfg.layout
         f, h = layout.frame_size, layout.history_size
         if self.sensing is not None:  # the fused call wrote the frame of ideal sensors only
@@ -436,16 +441,15 @@ class EpisodeBatch:
             self.grasped[:] = status.grasped
             self.flags[:] = status.flags
             self.constraint_error[:] = status.constraint_error
-            self.reason[:] = status.reason
+            self._ending[:] = status.reason_code
         # one compiled call: without slip windows the status and the contact check (the
         # windows' accounting wrote those), always the read-outs and the validated box
         record_step(windows is None, *self._status.arrays(), self.mu,
                     self._no_skip if skip is None else skip, *p.step_arrays()[:3],
                     self._read_block, self.radius, self.validated, self.flags,
-                    self.constraint_error, self._failed, self.grasped, self._reason_code,
+                    self.constraint_error, self._failed, self.grasped, self._ending,
                     self.contact_impulse, self.friction_ratio, self.tension, self._bad)
         if windows is None:
-            np.take(REASON_NAMES, self._reason_code, out=self.reason)
             return self._failed, self.grasped, self._bad, ctrl
         return status.failed, status.grasped, status.contact, ctrl
 
@@ -463,7 +467,7 @@ class EpisodeBatch:
             *self._status.arrays(), self.mu, self._no_skip,
             0 if self.windows is None else win.window, cfg.terminate_on_slip, win.left,
             win.impulse, self._active, self._done, self._substeps,
-            self.flags, self.constraint_error, self._failed, self.grasped, self._reason_code,
+            self.flags, self.constraint_error, self._failed, self.grasped, self._ending,
             self.contact_impulse, self.friction_ratio, self.tension, self._bad,
             self.radius, self.validated, self.sensing is None, layout.tactile, self.obs,
             layout.frame_size, layout.history_size, *self._score_arguments(),
@@ -495,7 +499,6 @@ class EpisodeBatch:
                                  p.integrator == "ros2", p.ros2_dt, self._fused_pack)
         if not ok:
             raise ValueError(f"action must be finite (got {actions.tolist()})")
-        self.reason[0] = REASON_NAMES[self._reason_code[0]]
         return self._bad
 
     def _delay(self, u: np.ndarray) -> np.ndarray:
@@ -526,6 +529,7 @@ class EpisodeBatch:
         """
         block = self._read_block
         values = {key: value.copy() for key, value in self._info_copied}
+        values["termination_reason"] = np.take(ENDING_NAMES, self._ending)
         for key, columns in _READ_COLUMNS.items():
             values[key] = block.take(columns, axis=1)
         terms = self.terms.copy()  # one fresh block, one row per term
@@ -556,7 +560,7 @@ class EpisodeBatch:
             "contact_impulse": ci.copy(),
             "tension": te.copy(),
             "contact_validated": va.copy(),
-            "termination_reason": self.reason[i],
+            "termination_reason": ENDING_NAMES[self._ending[i]],
         }
         if self.task.goal_dim:
             info["goal"] = go.copy()
@@ -590,7 +594,7 @@ class EpisodeBatch:
             "contact_impulse": self.contact_impulse,
             "tension": self.tension,
             "contact_validated": self.validated,
-            "termination_reason": self.reason,
+            "termination_reason": self._ending,  # codes: info_values names them
         }
         if self.task.goal_dim:
             values["goal"] = self.goal

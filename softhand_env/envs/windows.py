@@ -42,8 +42,9 @@ class WindowedStep(NamedTuple):
     failed, grasped : ndarray of bool, shape (N,)
         Physical failure and grasp after the last piece a hand ran (as
         :class:`~softhand_env.physics.StepStatus`).
-    reason : ndarray of object, shape (N,)
-        Physical failure name or None.
+    reason_code : ndarray of int64, shape (N,)
+        Physical failure code (0: none; names in
+        :data:`~softhand_env.physics.hand.REASON_NAMES`).
     impulse : ndarray, shape (N, 4)
         Contact impulses (J_n1, J_n2, J_t1, J_t2; N s) over the step (non-finite read as 0).
     friction_ratio : ndarray, shape (N, 2)
@@ -59,7 +60,7 @@ class WindowedStep(NamedTuple):
     constraint_error: np.ndarray
     failed: np.ndarray
     grasped: np.ndarray
-    reason: np.ndarray
+    reason_code: np.ndarray
     impulse: np.ndarray
     friction_ratio: np.ndarray
     tension: np.ndarray
@@ -162,7 +163,7 @@ class SlipWindows:
         error = np.zeros((n, 2))
         failed = np.zeros(n, dtype=bool)
         grasped = np.zeros(n, dtype=bool)
-        reason = np.full(n, None, dtype=object)
+        reason = np.zeros(n, dtype=np.int64)
         step_impulse = np.zeros((n, 4))
         ratio = np.zeros((n, 2))
         tension = np.zeros((n, 2), dtype=bool)
@@ -179,7 +180,7 @@ class SlipWindows:
             sel: slice | np.ndarray = slice(None) if m.all() else m
             failed[sel] = st.failed[sel]
             grasped[sel] = st.grasped[sel]
-            reason[sel] = st.reason[sel]
+            reason[sel] = st.arrays()[4][sel]  # failure codes
             _account(m, st.flags, st.constraint_error, st.impulse, st.substeps, mu, stop,
                      self.window, self.left, self.impulse, failed, active, done, flags, error,
                      step_impulse, ratio, tension, contact)
