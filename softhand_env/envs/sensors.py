@@ -234,17 +234,22 @@ class SensorState:
         omega = np.zeros_like(theta)
         tau = np.array(torque, dtype=np.float64)
         d = np.array(deformation, dtype=np.float64)
-        for i, rng in zip(rows, rngs, strict=True):
-            z = rng.standard_normal(self._draws)
-            reading = q * np.round((theta[i] + self.encoder_noise * z[:2]) / q)
-            if not first:
-                omega[i] = (reading - self.angle[i]) / self.dt
-            self.angle[i] = reading
-            theta[i] = reading
-            tau[i] = (self.torque_gain[i] * tau[i] + self.torque_bias[i]
-                      + self.spec.torque_noise_nm * z[2:4])
-            if self.tactile:
-                d[i] += self.tactile_noise * z[4:8]
+        rows = np.asarray(rows, dtype=np.intp)
+        if len(rngs) != rows.size:
+            raise ValueError(f"one generator per row: {rows.size} rows, {len(rngs)} generators")
+        # each environment's draws from its own generator, then every row at once
+        z = np.empty((rows.size, self._draws))
+        for draws, rng in zip(z, rngs, strict=True):
+            rng.standard_normal(out=draws)
+        reading = q * np.round((theta[rows] + self.encoder_noise * z[:, :2]) / q)
+        if not first:
+            omega[rows] = (reading - self.angle[rows]) / self.dt
+        self.angle[rows] = reading
+        theta[rows] = reading
+        tau[rows] = (self.torque_gain[rows] * tau[rows] + self.torque_bias[rows]
+                     + self.spec.torque_noise_nm * z[:, 2:4])
+        if self.tactile:
+            d[rows] += self.tactile_noise * z[:, 4:8]
         return theta, omega, tau, d
 
 
