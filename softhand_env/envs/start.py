@@ -3,7 +3,8 @@
 :func:`start_episode` draws an episode's parameters, grasp set-points and goal from the env's
 ``np_random`` and returns its start state; :func:`start_episodes` does the same for K episodes
 at once (what both environments call), drawing only the goals (and latencies) row by row when
-every episode starts from the one cached grasp state.
+every episode starts from the one cached grasp state, and otherwise simulating the K grasp
+phases in one batched physics (:func:`grasp_states`).
 
 :func:`grasp_state` holds the grasp set-points for ``n_substeps`` RK4 substeps from the
 paper's parallel point-contact state (``n_substeps = 0`` returns that state itself, as the
@@ -102,12 +103,7 @@ def grasp_state(
         if n_substeps > 0:
             status = physics.step(np.array([u0, u1]), int(n_substeps), strict=False)
             if status.failed:
-                raise PhysicsError(
-                    "the grasp phase at set-points "
-                    f"{np.degrees([u0, u1]).round(3).tolist()} deg failed: "
-                    f"{status.reason}; choose other grasp set-points or parameters",
-                    int(status.flags),
-                )
+                raise _grasp_failure(np.array([u0, u1]), status.reason, int(status.flags))
             hit = (physics.get_state(), float(status.max_ch), float(status.max_cn))
         else:
             hit = (physics.get_state(), 0.0, 0.0)
@@ -116,6 +112,63 @@ def grasp_state(
             if len(_CACHE) > _CACHE_SIZE:
                 _CACHE.popitem(last=False)
     return hit[0].copy(), hit[1], hit[2]
+
+
+def _grasp_failure(setpoint: np.ndarray, reason: str, flags: int) -> PhysicsError:
+    """The error of a grasp phase at set-points ``setpoint`` (2,) (rad) that ended in
+    ``reason`` with kernel ``flags``."""
+    return PhysicsError(
+        "the grasp phase at set-points "
+        f"{np.degrees(setpoint).round(3).tolist()} deg failed: "
+        f"{reason}; choose other grasp set-points or parameters",
+        flags,
+    )
+
+
+def grasp_states(
+    params: Sequence[HandParams],
+    setpoints: np.ndarray,
+    n_substeps: int,
+    ch_limit: float,
+    dn_limit: float,
+    base_limit: float = 1.0,
+) -> tuple[np.ndarray, np.ndarray, list[PhysicsError | None]]:
+    """The grasp phases of K hands in one batched physics (no cache): hand k with parameters
+    ``params[k]`` holds ``setpoints[k]`` for ``n_substeps`` substeps from the paper's parallel
+    point-contact state; the same numbers as :func:`grasp_state` hand by hand.
+
+    Parameters
+    ----------
+    params : sequence of K HandParams
+        One integrator (and under ``"ros2"`` one ``dt`` / ``ros2_dt``) for all.
+    setpoints : ndarray, shape (K, 2)
+        Grasp set-points (rad).
+    n_substeps, ch_limit, dn_limit, base_limit
+        As for :func:`grasp_state` (``n_substeps`` >= 1).
+
+    Returns
+    -------
+    y : ndarray, shape (K, 20)
+        Post-grasp states (rows of failed hands are not start states).
+    failed : ndarray of bool, shape (K,)
+        Grasp phases that ended in a failure.
+    errors : list of K PhysicsError or None
+        The error :func:`grasp_state` raises for each failed hand.
+    """
+    k = len(params)
+    physics = HandPhysics(params[0], num_hands=k, ch_limit=ch_limit, dn_limit=dn_limit,
+                          base_limit=base_limit, check_stability=False)
+    for i in range(1, k):
+        if params[i] is not params[0]:
+            physics.set_params(params[i], i)
+    physics.reset()  # each hand from its own parallel point-contact state
+    status = physics.step(setpoints, int(n_substeps), strict=False)
+    failed = np.array(status.failed, dtype=bool)
+    errors: list[PhysicsError | None] = [
+        _grasp_failure(setpoints[i], status.reason[i], int(status.flags[i])) if failed[i]
+        else None for i in range(k)
+    ]
+    return physics.get_state(), failed, errors
 
 
 def _nominal_start(cfg: EnvConfig) -> bool:
@@ -148,6 +201,16 @@ class EpisodeStart(NamedTuple):
     latency: int = 0
 
 
+def _draw_grasp(cfg: EnvConfig, rng: np.random.Generator) -> tuple[HandParams, np.ndarray]:
+    """An episode's randomised parameters and grasp set-points (2,) (rad; with the grasp
+    noise), drawn from ``rng`` in that order."""
+    params = cfg.randomization.sample_params(cfg.params, rng)
+    u0 = cfg.grasp_setpoint.copy()
+    if cfg.reset_noise > 0:
+        u0 += rng.uniform(-cfg.reset_noise, cfg.reset_noise, size=2)
+    return params, u0
+
+
 def start_episode(
     cfg: EnvConfig,
     rng: np.random.Generator,
@@ -174,10 +237,7 @@ def start_episode(
     fixed = _nominal_start(cfg)
     cached = fixed and _CACHE_ON[0]
     for attempt in range(1 if fixed else MAX_DRAWS):
-        params = cfg.randomization.sample_params(cfg.params, rng)
-        u0 = cfg.grasp_setpoint.copy()
-        if cfg.reset_noise > 0:
-            u0 += rng.uniform(-cfg.reset_noise, cfg.reset_noise, size=2)
+        params, u0 = _draw_grasp(cfg, rng)
         try:
             y, _, _ = grasp_state(
                 params, u0, cfg.n_grasp, cfg.ch_limit, cfg.dn_limit, use_cache=cached,
@@ -255,10 +315,13 @@ def start_episodes(
 
     Without randomisation (nominal parameters, no grasp noise) and with the grasp cache on,
     every episode starts from the one cached grasp state and only the goals (and latencies)
-    are drawn, row by row; otherwise each episode goes through :func:`start_episode`.
+    are drawn, row by row; otherwise the K grasp phases run in one batched physics
+    (:func:`_start_simulated`).
     """
     k = len(rngs)
     if not (_nominal_start(cfg) and _CACHE_ON[0]):
+        if k > 1 and cfg.n_grasp > 0:
+            return _start_simulated(cfg, rngs, goals)
         starts = [start_episode(cfg, rng, None if goals is None else goals[j])
                   for j, rng in enumerate(rngs)]
         params = [s.params for s in starts]
@@ -286,3 +349,51 @@ def start_episodes(
     # ndarray.repeat and fill: the rows of np.tile / np.full, at a fraction of their call cost
     return EpisodeStarts([prm] * k, cfg.grasp_setpoint[None].repeat(k, 0), goal,
                          y[None].repeat(k, 0), latency, mu, radius)
+
+
+def _start_simulated(
+    cfg: EnvConfig,
+    rngs: Sequence[np.random.Generator],
+    goals: Sequence[Any] | None,
+) -> EpisodeStarts:
+    """:func:`start_episodes` with a grasp phase simulated per episode (randomised, or the
+    cache off), the K phases in one batched physics (:func:`grasp_states`): each generator
+    draws what :func:`start_episode` draws, in its order (parameters and grasp noise, again
+    for a failed grasp phase, then goal, friction coefficient, latency), so the numbers are
+    the same. On a failure that raises, the generators of the other episodes may have drawn
+    their parameters already."""
+    k = len(rngs)
+    fixed = _nominal_start(cfg)
+    params: list[HandParams] = [cfg.params] * k
+    setpoints = np.empty((k, 2))
+    states: np.ndarray | None = None
+    pending = np.arange(k)
+    for attempt in range(1 if fixed else MAX_DRAWS):
+        for j in pending.tolist():
+            params[j], setpoints[j] = _draw_grasp(cfg, rngs[j])
+        y, failed, errors = grasp_states([params[j] for j in pending.tolist()],
+                                         setpoints[pending], cfg.n_grasp, cfg.ch_limit,
+                                         cfg.dn_limit, cfg.base_limit)
+        if states is None:
+            states = np.empty((k, y.shape[1]))
+        states[pending[~failed]] = y[~failed]
+        if failed.any() and (fixed or attempt == MAX_DRAWS - 1):
+            error = errors[int(np.flatnonzero(failed)[0])]
+            assert error is not None
+            raise error
+        pending = pending[failed]
+        if pending.size == 0:
+            break
+    assert states is not None
+    goal = cfg.task.sample_goals(rngs)  # drawn even where a goal is given
+    if goals is not None:
+        for j, g in enumerate(goals):
+            goal[j] = checked_goal(cfg, g)
+    params = [cfg.randomization.sample_friction(p, rng)
+              for p, rng in zip(params, rngs, strict=True)]
+    latency = np.zeros(k, dtype=np.int64)
+    if cfg.setpoint_latency > 0:
+        for j, rng in enumerate(rngs):
+            latency[j] = rng.integers(0, cfg.setpoint_latency + 1)
+    return EpisodeStarts(params, setpoints, goal, states, latency,
+                         np.array([p.mu for p in params]), np.array([p.a for p in params]))
