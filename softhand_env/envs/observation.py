@@ -25,6 +25,7 @@ The observation is ``history_len`` frames, newest first, followed by the goal of
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 
 import numpy as np
 from gymnasium import spaces
@@ -144,6 +145,26 @@ def add_frame_noise(frame: np.ndarray, std: float, rng: np.random.Generator) -> 
     # the draw from the generator, the sum and the clip in one compiled call (three ufunc
     # calls cost microseconds a frame)
     _add_clipped(frame, rng.normal(0.0, std, size=frame.shape[-1]))
+
+
+def add_frame_noise_rows(obs: np.ndarray, rows: np.ndarray, size: int, std: float,
+                         rngs: Sequence[np.random.Generator]) -> None:
+    """:func:`add_frame_noise` of the frames ``obs[i, :size]`` of the rows ``rows`` (int (K,))
+    of ``obs`` (float32 (N, obs_size)), row ``rows[k]`` drawing from ``rngs[k]``: the same
+    draws and numbers, the sums and clips of all rows in one compiled call."""
+    noise = np.empty((len(rngs), size))
+    for draws, rng in zip(noise, rngs, strict=True):
+        rng.standard_normal(out=draws)
+    noise *= std
+    noise += 0.0  # as Generator.normal(0.0, std) computes loc + scale * z (the sign of 0)
+    _add_clipped_rows(obs, np.asarray(rows, dtype=np.int64), noise)
+
+
+@njit(cache=True)
+def _add_clipped_rows(obs, rows, noise):
+    """obs[rows[k], :size] += noise[k] (noise (K, size)) as :func:`_add_clipped`, per row."""
+    for k in range(rows.shape[0]):
+        _add_clipped(obs[rows[k], : noise.shape[1]], noise[k])
 
 
 @njit(cache=True)

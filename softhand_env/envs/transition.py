@@ -34,7 +34,7 @@ from softhand_env.envs.fused import (
     restart_rows,
     write_starts,
 )
-from softhand_env.envs.observation import add_frame_noise, observe_rows
+from softhand_env.envs.observation import add_frame_noise, add_frame_noise_rows, observe_rows
 from softhand_env.envs.sensors import SensorState
 from softhand_env.envs.start import start_episodes
 from softhand_env.envs.tasks import GoalTask
@@ -291,9 +291,8 @@ class EpisodeBatch:
         if self.sensing is not None:  # restart_rows wrote the frames of ideal sensors
             obs[rows, :f] = self._frames(rows=rows, rngs=rngs, first=True, subset=True)
         noise = self.cfg.randomization.obs_noise
-        if noise > 0:  # row by row: each from its environment's generator
-            for i in rows:
-                add_frame_noise(obs[i, :f], noise, _generator(rngs, i))
+        if noise > 0:  # each row from its environment's generator
+            add_frame_noise_rows(obs, rows, f, noise, [_generator(rngs, i) for i in rows])
         for k in range(1, layout.history_len):
             obs[rows, k * f : (k + 1) * f] = obs[rows, :f]
 
@@ -373,8 +372,8 @@ class EpisodeBatch:
             rows = np.arange(n) if skip is None else np.flatnonzero(~skip)
             self._frames(self.obs, rows=rows, rngs=rngs)
             if noise > 0:
-                for i in rows:
-                    add_frame_noise(self.obs[i, :f], noise, _generator(rngs, i))
+                add_frame_noise_rows(self.obs, rows, f, noise,
+                                     [_generator(rngs, i) for i in rows])
         return self._reward.copy(), terminated
 
     def step_one(self, actions: np.ndarray, rng: np.random.Generator | None) -> tuple[float, bool]:
