@@ -44,8 +44,10 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from numba import njit
 
 from softhand_env.envs.options import KEYWORDS
+from softhand_env.physics import jit_cache  # noqa: F401  (the package stamp on cached kernels)
 
 SENSOR_CONFIG_DIR = Path(__file__).resolve().parent.parent / "configs" / "sensors"
 
@@ -234,23 +236,40 @@ class SensorState:
         omega = np.zeros_like(theta)
         tau = np.array(torque, dtype=np.float64)
         d = np.array(deformation, dtype=np.float64)
-        rows = np.asarray(rows, dtype=np.intp)
+        rows = np.asarray(rows, dtype=np.int64)
         if len(rngs) != rows.size:
             raise ValueError(f"one generator per row: {rows.size} rows, {len(rngs)} generators")
-        # each environment's draws from its own generator, then every row at once
+        # each environment's draws from its own generator, then every row in one compiled call
         z = np.empty((rows.size, self._draws))
         for draws, rng in zip(z, rngs, strict=True):
             rng.standard_normal(out=draws)
-        reading = q * np.round((theta[rows] + self.encoder_noise * z[:, :2]) / q)
-        if not first:
-            omega[rows] = (reading - self.angle[rows]) / self.dt
-        self.angle[rows] = reading
-        theta[rows] = reading
-        tau[rows] = (self.torque_gain[rows] * tau[rows] + self.torque_bias[rows]
-                     + self.spec.torque_noise_nm * z[:, 2:4])
-        if self.tactile:
-            d[rows] += self.tactile_noise * z[:, 4:8]
+        _sense_rows(theta, omega, tau, d, rows, z, q, self.encoder_noise,
+                    self.spec.torque_noise_nm, self.tactile_noise, self.dt, first,
+                    self.tactile, self.angle, self.torque_gain, self.torque_bias)
         return theta, omega, tau, d
+
+
+@njit(cache=True)
+def _sense_rows(theta, omega, tau, d, rows, z, q, encoder_noise, torque_noise, tactile_noise,
+                dt, first, tactile, angle, gain, bias):
+    """The readings of the rows ``rows`` (int (K,)) in place, from the standard normal draws
+    z (K, 4 or 8) of each row (encoder 2, torque 2, tactile 4): encoder angles theta (N, 2)
+    rounded to the resolution q (rad) after N(0, encoder_noise^2) noise, their difference
+    quotient over dt (s) into omega (N, 2) unless ``first``, the readings kept in angle
+    (N, 2); torques tau (N, 2) = gain * tau + bias + N(0, torque_noise^2) (N m); with
+    ``tactile`` d (N, 4) += N(0, tactile_noise^2) (m)."""
+    for k in range(rows.shape[0]):
+        i = rows[k]
+        for j in range(2):
+            reading = q * np.rint((theta[i, j] + encoder_noise * z[k, j]) / q)
+            if not first:
+                omega[i, j] = (reading - angle[i, j]) / dt
+            angle[i, j] = reading
+            theta[i, j] = reading
+            tau[i, j] = gain[i, j] * tau[i, j] + bias[i, j] + torque_noise * z[k, 2 + j]
+        if tactile:
+            for j in range(4):
+                d[i, j] += tactile_noise * z[k, 4 + j]
 
 
 __all__ = ["RANGES", "SENSOR_MODELS", "SensorSpec", "SensorState", "load_sensor_spec"]

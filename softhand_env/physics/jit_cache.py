@@ -31,6 +31,7 @@ JIT_MODULES = (
     "envs/actions.py",
     "envs/fused.py",
     "envs/observation.py",
+    "envs/sensors.py",
     "envs/tasks.py",
     "envs/windows.py",
     "physics/failure.py",
