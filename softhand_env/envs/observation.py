@@ -147,14 +147,21 @@ def add_frame_noise(frame: np.ndarray, std: float, rng: np.random.Generator) -> 
     _add_clipped(frame, rng.normal(0.0, std, size=frame.shape[-1]))
 
 
+def standard_normal_rows(rngs: Sequence[np.random.Generator], size: int) -> np.ndarray:
+    """Standard normal draws (K, size), row k from ``rngs[k]`` (written in place: the numbers
+    of ``rngs[k].standard_normal(size)``)."""
+    z = np.empty((len(rngs), size))
+    for row, rng in zip(z, rngs, strict=True):
+        rng.standard_normal(out=row)
+    return z
+
+
 def add_frame_noise_rows(obs: np.ndarray, rows: np.ndarray, size: int, std: float,
                          rngs: Sequence[np.random.Generator]) -> None:
     """:func:`add_frame_noise` of the frames ``obs[i, :size]`` of the rows ``rows`` (int (K,))
     of ``obs`` (float32 (N, obs_size)), row ``rows[k]`` drawing from ``rngs[k]``: the same
     draws and numbers, the sums and clips of all rows in one compiled call."""
-    noise = np.empty((len(rngs), size))
-    for draws, rng in zip(noise, rngs, strict=True):
-        rng.standard_normal(out=draws)
+    noise = standard_normal_rows(rngs, size)
     noise *= std
     noise += 0.0  # as Generator.normal(0.0, std) computes loc + scale * z (the sign of 0)
     _add_clipped_rows(obs, np.asarray(rows, dtype=np.int64), noise)

@@ -46,6 +46,7 @@ from typing import Any
 import numpy as np
 from numba import njit
 
+from softhand_env.envs.observation import standard_normal_rows
 from softhand_env.envs.options import KEYWORDS
 from softhand_env.physics import jit_cache  # noqa: F401  (the package stamp on cached kernels)
 
@@ -240,9 +241,7 @@ class SensorState:
         if len(rngs) != rows.size:
             raise ValueError(f"one generator per row: {rows.size} rows, {len(rngs)} generators")
         # each environment's draws from its own generator, then every row in one compiled call
-        z = np.empty((rows.size, self._draws))
-        for draws, rng in zip(z, rngs, strict=True):
-            rng.standard_normal(out=draws)
+        z = standard_normal_rows(rngs, self._draws)
         _sense_rows(theta, omega, tau, d, rows, z, q, self.encoder_noise,
                     self.spec.torque_noise_nm, self.tactile_noise, self.dt, first,
                     self.tactile, self.angle, self.torque_gain, self.torque_bias)

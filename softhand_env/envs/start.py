@@ -29,6 +29,7 @@ import numpy as np
 
 from softhand_env.envs.config import EnvConfig
 from softhand_env.physics.hand import HandPhysics, PhysicsError
+from softhand_env.physics.model import NY
 from softhand_env.physics.params import HandParams
 
 _CACHE: OrderedDict[tuple[Any, ...], tuple[np.ndarray, float, float]] = OrderedDict()
@@ -305,6 +306,27 @@ class EpisodeStarts(NamedTuple):
     radius: np.ndarray
 
 
+def _draw_goals(cfg: EnvConfig, rngs: Sequence[np.random.Generator],
+                goals: Sequence[Any] | None) -> np.ndarray:
+    """Goals (K, goal_dim) (SI) of K episodes, row k drawn from ``rngs[k]`` even where
+    ``goals[k]`` is given (to keep the stream aligned), which then replaces it (checked)."""
+    goal = cfg.task.sample_goals(rngs)
+    if goals is not None:
+        for j, g in enumerate(goals):
+            goal[j] = checked_goal(cfg, g)
+    return goal
+
+
+def _draw_latencies(cfg: EnvConfig, rngs: Sequence[np.random.Generator]) -> np.ndarray:
+    """Set-point latencies (K,) (int64, control steps) of K episodes, each drawn from its own
+    generator with ``setpoint_latency`` > 0, else 0 without a draw."""
+    latency = np.zeros(len(rngs), dtype=np.int64)
+    if cfg.setpoint_latency > 0:
+        for j, rng in enumerate(rngs):
+            latency[j] = rng.integers(0, cfg.setpoint_latency + 1)
+    return latency
+
+
 def start_episodes(
     cfg: EnvConfig,
     rngs: Sequence[np.random.Generator],
@@ -335,14 +357,8 @@ def start_episodes(
     prm = cfg.params
     y, _, _ = grasp_state(prm, cfg.grasp_setpoint, cfg.n_grasp, cfg.ch_limit, cfg.dn_limit,
                           base_limit=cfg.base_limit)
-    goal = cfg.task.sample_goals(rngs)  # drawn even where a goal is given
-    if goals is not None:
-        for j, g in enumerate(goals):
-            goal[j] = checked_goal(cfg, g)
-    latency = np.zeros(k, dtype=np.int64)
-    if cfg.setpoint_latency > 0:
-        for j, rng in enumerate(rngs):
-            latency[j] = rng.integers(0, cfg.setpoint_latency + 1)
+    goal = _draw_goals(cfg, rngs, goals)
+    latency = _draw_latencies(cfg, rngs)
     mu, radius = np.empty(k), np.empty(k)
     mu.fill(prm.mu)
     radius.fill(prm.a)
@@ -366,7 +382,7 @@ def _start_simulated(
     fixed = _nominal_start(cfg)
     params: list[HandParams] = [cfg.params] * k
     setpoints = np.empty((k, 2))
-    states: np.ndarray | None = None
+    states = np.empty((k, NY))
     pending = np.arange(k)
     for attempt in range(1 if fixed else MAX_DRAWS):
         for j in pending.tolist():
@@ -374,8 +390,6 @@ def _start_simulated(
         y, failed, errors = grasp_states([params[j] for j in pending.tolist()],
                                          setpoints[pending], cfg.n_grasp, cfg.ch_limit,
                                          cfg.dn_limit, cfg.base_limit)
-        if states is None:
-            states = np.empty((k, y.shape[1]))
         states[pending[~failed]] = y[~failed]
         if failed.any() and (fixed or attempt == MAX_DRAWS - 1):
             error = errors[int(np.flatnonzero(failed)[0])]
@@ -384,16 +398,9 @@ def _start_simulated(
         pending = pending[failed]
         if pending.size == 0:
             break
-    assert states is not None
-    goal = cfg.task.sample_goals(rngs)  # drawn even where a goal is given
-    if goals is not None:
-        for j, g in enumerate(goals):
-            goal[j] = checked_goal(cfg, g)
+    goal = _draw_goals(cfg, rngs, goals)
     params = [cfg.randomization.sample_friction(p, rng)
               for p, rng in zip(params, rngs, strict=True)]
-    latency = np.zeros(k, dtype=np.int64)
-    if cfg.setpoint_latency > 0:
-        for j, rng in enumerate(rngs):
-            latency[j] = rng.integers(0, cfg.setpoint_latency + 1)
+    latency = _draw_latencies(cfg, rngs)
     return EpisodeStarts(params, setpoints, goal, states, latency,
                          np.array([p.mu for p in params]), np.array([p.a for p in params]))

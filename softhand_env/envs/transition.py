@@ -528,7 +528,7 @@ class EpisodeBatch:
         """
         block = self._read_block
         values = {key: value.copy() for key, value in self._info_copied}
-        values["termination_reason"] = np.take(ENDING_NAMES, self._ending)
+        values["termination_reason"] = self.reason
         for key, columns in _READ_COLUMNS.items():
             values[key] = block.take(columns, axis=1)
         terms = self.terms.copy()  # one fresh block, one row per term
