@@ -22,7 +22,7 @@ numbers are bit for bit those of the batched path (``tests/envs/test_one_episode
 The batched path (:meth:`~softhand_env.envs.transition.EpisodeBatch.step`) records a step of N
 hands with :func:`record_step` (status, contact check, read-outs, validated box; the single
 episode's step calls it too) and starts episodes with :func:`write_starts` and
-:func:`restart_rows`.
+:func:`finish_rows`.
 The arguments that stay the same over an episode batch's life (constants and the arrays
 written in place) travel in one :class:`Arguments` record (:func:`control_step_packed`):
 dispatching 49 arguments cost about 5 us a step, one record about 1 us.
@@ -184,6 +184,48 @@ def record_step(outcome, FLAGS, DIAG, FAILED, GRASPED, REASON, MU, SKIP, Y, U, P
 
 
 @njit(cache=True)
+def finish_step(outcome, SKIP, STEP_FAILED, STEP_GRASPED, STEP_CONTACT, CTRL, READ,
+                on_success, frames, TERMINATED, S):
+    """After the physics step of N hands, the rest of a batched control step in one compiled
+    call, with the record S (:class:`Arguments` of the batch's arrays, ``FAILED_ONE`` (N,)
+    and ``ROW`` every row): :func:`record_step` (``outcome``: a step without slip windows;
+    SKIP bool (N,) the hands not stepped; read-outs into READ); the step's failure with slip
+    and tension when they end the episode (``S.stop``) from STEP_FAILED, STEP_CONTACT (N,)
+    into ``S.FAILED_ONE``; the task's terms, success and reward (a goal task:
+    :func:`~softhand_env.envs.tasks.score_rows` with the control cost CTRL (N,) and the grasp
+    STEP_GRASPED (N,); otherwise no success and no reward); TERMINATED (N,) (a failure, or
+    success with ``on_success``); the ending codes (:func:`mark_endings`); the observation
+    history shifted by one frame and, with ``frames`` (ideal sensors without noise), the
+    newest frames written from READ."""
+    record_step(outcome, S.FLAGS, S.DIAG, S.FAILED, S.GRASPED, S.REASON, S.MU, SKIP, S.Y,
+                S.U, S.PRM, READ, S.RADIUS, S.VALIDATED, S.OUT_FLAGS, S.OUT_ERROR,
+                S.OUT_FAILED, S.OUT_GRASPED, S.OUT_REASON, S.IMPULSE, S.RATIO, S.TENSION,
+                S.CONTACT)
+    failed = S.FAILED_ONE
+    for s in range(failed.shape[0]):
+        failed[s] = STEP_FAILED[s] or (S.stop and STEP_CONTACT[s])
+    if S.score:
+        score_rows(READ[:, X_OBJ : X_OBJ + 3], S.GOAL, CTRL, failed, STEP_GRASPED, S.ROW,
+                   S.INDEX, S.TOLERANCE, S.SCALE, S.WEIGHTS, S.TERMS, S.SUCCESS, S.REWARD)
+    else:
+        S.SUCCESS[:] = False
+        S.REWARD[:] = 0.0
+    for s in range(failed.shape[0]):
+        TERMINATED[s] = failed[s] or (on_success and S.SUCCESS[s])
+    mark_endings(STEP_CONTACT, S.TENSION, TERMINATED, failed, S.stop, on_success,
+                 S.OUT_REASON)
+    obs, frame = S.OBS, S.frame
+    for s in range(obs.shape[0]):
+        for j in range(S.history - 1, frame - 1, -1):
+            obs[s, j] = obs[s, j - frame]
+    if frames:
+        observe_rows(READ[:, TH_1 : TH_1 + 2], READ[:, NQ + TH_1 : NQ + TH_1 + 2],
+                     READ[:, READ_SETPOINT : READ_SETPOINT + 2],
+                     READ[:, READ_TORQUE : READ_TORQUE + 2], READ[:, DN_1 : DT_1 + 2],
+                     S.tactile, obs)
+
+
+@njit(cache=True)
 def restart_rows(Y, U, PRM, ROWS, READ, RADIUS, VALIDATED, ERROR, GRASPED, observe, tactile,
                  OBS):
     """The start-state bookkeeping of the hands ROWS (int (K,)) just restarted, in one compiled
@@ -206,6 +248,39 @@ def restart_rows(Y, U, PRM, ROWS, READ, RADIUS, VALIDATED, ERROR, GRASPED, obser
                          r[:, READ_SETPOINT : READ_SETPOINT + 2],
                          r[:, READ_TORQUE : READ_TORQUE + 2], r[:, DN_1 : DT_1 + 2], tactile,
                          OBS[s : s + 1])
+
+
+@njit(cache=True)
+def finish_rows(Y, U, PRM, ROWS, READ, RADIUS, VALIDATED, ERROR, GRASPED, observe, tactile,
+                OBS, frame, copies, score, GOAL, INDEX, TOLERANCE, SCALE, WEIGHTS, ZERO, FALSE,
+                TERMS, SUCCESS, REWARD, GOAL_SCALE, bound):
+    """The start-state bookkeeping and first observation of the episodes ROWS (int (K,)) just
+    started, in one compiled call: :func:`restart_rows` (read-outs, validated box, constraint
+    errors, grasp; with ``observe`` the newest frame of ideal sensors), the start state scored
+    (with ``score``, a goal task: :func:`~softhand_env.envs.tasks.score_rows` with no control
+    cost ZERO (N,) and no failure FALSE (N,), the goal GOAL (N, goal_dim) and the task's INDEX,
+    TOLERANCE, SCALE, WEIGHTS; the terms into the scratch TERMS (4, N) and REWARD (N,),
+    success into SUCCESS (N,); otherwise SUCCESS False and REWARD 0 on ROWS), the goal
+    observation (GOAL / GOAL_SCALE (goal_dim,) clipped to +-``bound``) into the last goal_dim
+    columns of OBS, and the newest frame (``frame`` entries) copied into the ``copies - 1``
+    older history slots (``copies`` 1: none). The other rows are left as they are."""
+    restart_rows(Y, U, PRM, ROWS, READ, RADIUS, VALIDATED, ERROR, GRASPED, observe, tactile,
+                 OBS)
+    if score:
+        score_rows(READ[:, X_OBJ : X_OBJ + 3], GOAL, ZERO, FALSE, GRASPED, ROWS, INDEX,
+                   TOLERANCE, SCALE, WEIGHTS, TERMS, SUCCESS, REWARD)
+    else:
+        for k in range(ROWS.shape[0]):
+            SUCCESS[ROWS[k]] = False
+            REWARD[ROWS[k]] = 0.0
+    at = OBS.shape[1] - GOAL.shape[1]
+    for k in range(ROWS.shape[0]):
+        s = ROWS[k]
+        for t in range(GOAL.shape[1]):
+            OBS[s, at + t] = min(max(GOAL[s, t] / GOAL_SCALE[t], -bound), bound)
+        for c in range(1, copies):
+            for j in range(frame):
+                OBS[s, c * frame + j] = OBS[s, j]
 
 
 @njit(cache=True)

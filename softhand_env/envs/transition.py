@@ -28,13 +28,17 @@ from softhand_env.envs.fused import (
     ENDING_SUCCESS,
     ENDING_TENSION,
     control_step_packed,
-    mark_endings,
+    finish_rows,
+    finish_step,
     pack_arguments,
-    record_step,
-    restart_rows,
     write_starts,
 )
-from softhand_env.envs.observation import add_frame_noise, add_frame_noise_rows, observe_rows
+from softhand_env.envs.observation import (
+    OBS_BOUND,
+    add_frame_noise,
+    add_frame_noise_rows,
+    observe_rows,
+)
 from softhand_env.envs.sensors import SensorState
 from softhand_env.envs.start import start_episodes
 from softhand_env.envs.tasks import GoalTask
@@ -161,6 +165,7 @@ class EpisodeBatch:
         self._reward = np.zeros(n)  # the terms' sum of the last step
         self._all_rows = np.arange(n)
         self._failed_one = np.zeros(1, dtype=bool)  # one episode's failure, slip included
+        self._failed_any = np.zeros(n, dtype=bool)  # the same of every episode of a batch
         # what a start state is scored with: no control cost, no failure; its terms are
         # dropped
         self._zero = np.zeros(n)
@@ -205,17 +210,22 @@ class EpisodeBatch:
         self.physics.read_into(self._read_block)
         self._r = self._read_views
         self._fused_pack: Any = None  # fused.Arguments of _fused_args, built on first use
+        self._batch_pack: Any = None  # fused.Arguments of the batched step, the same
         self._rows0 = self._rows(0)  # views, as info reads row 0 every step of a single env
         self._reads0 = self._read_rows0()
         self._info_views()
+        self._start_score = self._start_arguments()
         if self._fused:
-            self._fused_args = self._fused_arguments()
+            self._fused_args = self._fused_arguments(self._failed_one, _ROW_0)
 
     def __getstate__(self) -> dict[str, Any]:
         state = self.__dict__.copy()
         state["_fused_pack"] = None  # a compiled record does not pickle; rebuilt on use
-        # views unpickle as copies: these are rebuilt on unpickling
-        for views in ("_r", "_read_views", "_rows0", "_reads0", "_info_keys", "_info_copied"):
+        state["_batch_pack"] = None
+        # views unpickle as copies: these (and the record of arrays for starts) are rebuilt
+        # on unpickling
+        for views in ("_r", "_read_views", "_rows0", "_reads0", "_info_keys", "_info_copied",
+                      "_start_score"):
             del state[views]
         return state
 
@@ -226,6 +236,7 @@ class EpisodeBatch:
         self._rows0 = self._rows(0)
         self._reads0 = self._read_rows0()
         self._info_views()
+        self._start_score = self._start_arguments()
 
     def _info_views(self) -> None:
         """The key order of :meth:`info_values` and the (key, array) pairs it copies as they
@@ -276,21 +287,22 @@ class EpisodeBatch:
         """Start-state info and observations of the environments of ``mask`` (bool (N,)) just
         started: the first frame in every history slot (noise drawn once from ``rngs[i]``),
         then the goal. The other environments' rows are left as they are."""
-        p = self.physics
         rows = np.flatnonzero(mask)
         layout = self.cfg.layout
         obs = self.obs
-        restart_rows(*p.step_arrays()[:3], rows, self._read_block, self.radius, self.validated,
-                     self.constraint_error, self.grasped, self.sensing is None,
-                     layout.tactile, obs)
-        # success at the start state (no action, no failure); the terms stay 0
-        self.task.score(self._r.object_pose, self.goal, self._zero, self._false, self.grasped,
-                        rows, self._scratch_terms, self.success, self._scratch_reward)
-        f, h = layout.frame_size, layout.history_size
-        obs[rows, h:] = self.task.goal_observation(self.goal[rows])
-        if self.sensing is not None:  # restart_rows wrote the frames of ideal sensors
-            obs[rows, :f] = self._frames(rows=rows, rngs=rngs, first=True, subset=True)
+        f = layout.frame_size
         noise = self.cfg.randomization.obs_noise
+        ideal = self.sensing is None
+        # read-outs, start-state success (no action, no failure; the terms stay 0), the goal,
+        # and with ideal noise-free sensors the first frame in every history slot
+        y, u, prm = self.physics.step_arrays()[:3]
+        finish_rows(y, u, prm, rows, self._read_block, self.radius, self.validated,
+                    self.constraint_error, self.grasped, ideal, layout.tactile, obs, f,
+                    layout.history_len if ideal and noise == 0 else 1, *self._start_score)
+        if ideal and noise == 0:
+            return
+        if not ideal:  # finish_rows wrote the frames of ideal sensors
+            obs[rows, :f] = self._frames(rows=rows, rngs=rngs, first=True, subset=True)
         if noise > 0:  # each row from its environment's generator
             add_frame_noise_rows(obs, rows, f, noise, [_generator(rngs, i) for i in rows])
         for k in range(1, layout.history_len):
@@ -350,25 +362,20 @@ class EpisodeBatch:
         terminated : ndarray of bool, shape (N,)
         """
         cfg, n = self.cfg, self.num_envs
-        layout = cfg.layout
-        f, h = layout.frame_size, layout.history_size
         # (a single episode steps through step_one and its one compiled call)
-        failed, grasped, contact, ctrl = self._step_batched(actions, skip)
-        if cfg.terminate_on_slip:
-            failed = failed | contact
-        self.task.score(self._r.object_pose, self.goal, ctrl, failed,
-                        grasped, self._all_rows, self.terms, self.success, self._reward)
-        # a fresh array (``failed`` may be the status buffer)
-        terminated = (failed | self.success) if self.task.terminate_on_success else failed.copy()
-        mark_endings(contact, self.tension, terminated, failed, cfg.terminate_on_slip,
-                     self.task.terminate_on_success, self._ending)
-        # observations: shift the history, write the newest frames
-        if h > f:
-            self.obs[:, f:h] = self.obs[:, : h - f]
+        outcome, failed, grasped, contact, ctrl = self._step_physics(actions, skip)
+        if self._batch_pack is None:
+            self._batch_pack = pack_arguments(
+                *self._fused_arguments(self._failed_any, self._all_rows))
         noise = cfg.randomization.obs_noise
-        if self.sensing is None and noise == 0:  # no draws: every row at once
-            self._frames(self.obs)
-        else:
+        frames = self.sensing is None and noise == 0  # no draws: every row at once
+        terminated = np.empty(n, dtype=bool)
+        # one compiled call: status, read-outs, score, endings, history and ideal frames
+        finish_step(outcome, self._no_skip if skip is None else skip, failed, grasped,
+                    contact, ctrl, self._read_block, self.task.terminate_on_success, frames,
+                    terminated, self._batch_pack)
+        if not frames:
+            f = cfg.layout.frame_size
             rows = np.arange(n) if skip is None else np.flatnonzero(~skip)
             self._frames(self.obs, rows=rows, rngs=rngs)
             if noise > 0:
@@ -416,13 +423,15 @@ class EpisodeBatch:
             add_frame_noise(self.obs[0, :f], noise, _generator((rng,), 0))
         return float(self._reward[0]), bool(terminated)
 
-    def _step_batched(
+    def _step_physics(
         self, actions: np.ndarray, skip: np.ndarray | None
-    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, Any]:
-        """The physics part of :meth:`step` through the batched pieces: set-points, physics
-        step (or slip windows), contact check, read-outs and validated box. Records the
-        grasp, flags, constraint errors and reasons; returns (failed, grasped, contact,
-        ctrl), the first three bool (N,) (possibly buffers overwritten by the next step)."""
+    ) -> tuple[bool, np.ndarray, np.ndarray, np.ndarray, Any]:
+        """The physics part of :meth:`step`: set-points, then the physics step or the slip
+        windows. Returns (outcome, failed, grasped, contact, ctrl): ``outcome`` True for a
+        step without slip windows, whose status and contact check
+        :func:`~softhand_env.envs.fused.finish_step` records into the bool (N,) arrays
+        returned (the windows' accounting wrote them already); ``ctrl`` the control cost
+        (N,)."""
         cfg = self.cfg
         if cfg.setpoint_latency:
             u, ctrl = cfg.actions.setpoints(actions, self._sent[:, 0])
@@ -432,30 +441,23 @@ class EpisodeBatch:
         p, windows = self.physics, self.windows
         if windows is None:
             p.step(u, cfg.n_substeps, strict=False, skip=skip, out=self._status)
-        else:
-            status = windows.step(p, u, cfg.n_substeps, self.mu, cfg.terminate_on_slip, skip)
-            self.contact_impulse[:] = status.impulse
-            self.friction_ratio[:] = status.friction_ratio
-            self.tension[:] = status.tension
-            self.grasped[:] = status.grasped
-            self.flags[:] = status.flags
-            self.constraint_error[:] = status.constraint_error
-            self._ending[:] = status.reason_code
-        # one compiled call: without slip windows the status and the contact check (the
-        # windows' accounting wrote those), always the read-outs and the validated box
-        record_step(windows is None, *self._status.arrays(), self.mu,
-                    self._no_skip if skip is None else skip, *p.step_arrays()[:3],
-                    self._read_block, self.radius, self.validated, self.flags,
-                    self.constraint_error, self._failed, self.grasped, self._ending,
-                    self.contact_impulse, self.friction_ratio, self.tension, self._bad)
-        if windows is None:
-            return self._failed, self.grasped, self._bad, ctrl
-        return status.failed, status.grasped, status.contact, ctrl
+            return True, self._failed, self.grasped, self._bad, ctrl
+        status = windows.step(p, u, cfg.n_substeps, self.mu, cfg.terminate_on_slip, skip)
+        self.contact_impulse[:] = status.impulse
+        self.friction_ratio[:] = status.friction_ratio
+        self.tension[:] = status.tension
+        self.grasped[:] = status.grasped
+        self.flags[:] = status.flags
+        self.constraint_error[:] = status.constraint_error
+        self._ending[:] = status.reason_code
+        return False, status.failed, status.grasped, status.contact, ctrl
 
-    def _fused_arguments(self) -> tuple[Any, ...]:
+    def _fused_arguments(self, failed_one: np.ndarray, rows: np.ndarray) -> tuple[Any, ...]:
         """The arguments of :func:`~softhand_env.envs.fused.control_step` after the first
         three (action, previous set-points, read-out block) and the integrator pair: the
-        configuration's constants and the arrays updated in place (built once)."""
+        configuration's constants and the arrays updated in place (built once), with
+        ``failed_one`` (bool (N,)) the step's failure, slip and tension included when they
+        end the episode, and ``rows`` (int (N,)) the rows to score."""
         cfg, p, layout = self.cfg, self.physics, self.cfg.layout
         win = self.windows if self.windows is not None else SlipWindows(1, 1)
         return (
@@ -469,22 +471,36 @@ class EpisodeBatch:
             self.flags, self.constraint_error, self._failed, self.grasped, self._ending,
             self.contact_impulse, self.friction_ratio, self.tension, self._bad,
             self.radius, self.validated, self.sensing is None, layout.tactile, self.obs,
-            layout.frame_size, layout.history_size, *self._score_arguments(),
+            layout.frame_size, layout.history_size, *self._score_arguments(failed_one, rows),
         )
 
-    def _score_arguments(self) -> tuple[Any, ...]:
+    def _start_arguments(self) -> tuple[Any, ...]:
+        """The scoring and goal arguments of :func:`~softhand_env.envs.fused.finish_rows`
+        after ``copies``: a start state is scored with no control cost and no failure, into
+        scratch terms and reward."""
+        task = self.task
+        score, goal, index, tolerance, scale, weights = self._score_arguments(
+            self._failed_one, _ROW_0)[:6]
+        goal_scale = task._obs_scales if isinstance(task, GoalTask) else np.zeros(0)
+        return (score, goal, index, tolerance, scale, weights, self._zero, self._false,
+                self._scratch_terms, self.success, self._scratch_reward, goal_scale,
+                OBS_BOUND)
+
+    def _score_arguments(self, failed_one: np.ndarray, rows: np.ndarray) -> tuple[Any, ...]:
         """The scoring arguments of :func:`~softhand_env.envs.fused.control_step`: whether
-        the task scores, its goal and constants (empty without a goal), the outputs."""
+        the task scores, its goal and constants (empty without a goal), the outputs
+        (``failed_one`` the step's failure and ``rows`` the rows scored, see
+        :meth:`_fused_arguments`)."""
         task = self.task
         if isinstance(task, GoalTask):
             constants = (task._index, task._tolerance, task._scale, task._weights)
         else:
             constants = (np.zeros(0, dtype=np.int64), np.zeros(0), np.zeros(0), np.zeros(4))
-        return (isinstance(task, GoalTask), self.goal, *constants, self._failed_one,
-                self.terms, self.success, self._reward, _ROW_0)
+        return (isinstance(task, GoalTask), self.goal, *constants, failed_one,
+                self.terms, self.success, self._reward, rows)
 
     def _step_fused(self, actions: np.ndarray) -> np.ndarray:
-        """:meth:`_step_batched` of one episode in one compiled call
+        """The physics and the rest of :meth:`step` of one episode in one compiled call
         (:func:`~softhand_env.envs.fused.control_step`; with ideal sensors also the newest
         observation frame; the task's score). Returns the contact flags (1,) (slip or
         tension)."""

@@ -602,8 +602,9 @@ def _plan_blocks(FLAGS):
 
 
 @njit(cache=True, parallel=True)
-def _advance_parallel(Y, U, PRM, n, ch_limit, DIAG, FLAGS):
-    """:func:`advance_batch` with the blocks in parallel over numba threads."""
+def advance_batch_parallel(Y, U, PRM, n, ch_limit, DIAG, FLAGS):
+    """:func:`advance_batch` with the blocks in parallel over numba threads; callable from
+    compiled code."""
     active, width = _plan_blocks(FLAGS)
     n_active = active.shape[0]
     n_blocks = (n_active + width - 1) // width
@@ -670,7 +671,7 @@ def advance_batch(
     if not parallel:
         advance_batch_serial(Y, U, PRM, n, ch_limit, DIAG, FLAGS)
     else:
-        _advance_parallel(Y, U, PRM, n, ch_limit, DIAG, FLAGS)
+        advance_batch_parallel(Y, U, PRM, n, ch_limit, DIAG, FLAGS)
 
 
 def advance_batch_py(
@@ -701,6 +702,7 @@ __all__ = [
     "N_STEP_DIAG",
     "advance",
     "advance_batch",
+    "advance_batch_parallel",
     "advance_batch_serial",
     "advance_batch_py",
     "base_exceeded",

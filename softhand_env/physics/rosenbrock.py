@@ -743,7 +743,10 @@ def _plan_blocks(FLAGS):
 
 
 @njit(cache=True, parallel=True)
-def _advance_parallel(Y, U, PRM, n, H, ch_limit, DIAG, FLAGS):
+def advance_batch_parallel(Y, U, PRM, n, H, ch_limit, DIAG, FLAGS):
+    """:func:`advance_batch` with the blocks over numba's threads, without its checks (one
+    ``dt`` for every system, ``H`` > 0: the caller's to keep); callable from compiled
+    code."""
     active, width = _plan_blocks(FLAGS)
     n_active = active.shape[0]
     n_blocks = (n_active + width - 1) // width
@@ -816,10 +819,10 @@ def advance_batch(
     N = Y.shape[0]
     if parallel is None:
         parallel = N * len(step_schedule(n * float(PRM[0, P_DT]), H)) >= PARALLEL_MIN_WORK
-    if not parallel:
-        advance_batch_serial(Y, U, PRM, n, H, ch_limit, DIAG, FLAGS)
+    if parallel:
+        advance_batch_parallel(Y, U, PRM, n, H, ch_limit, DIAG, FLAGS)
     else:
-        _advance_parallel(Y, U, PRM, n, H, ch_limit, DIAG, FLAGS)
+        advance_batch_serial(Y, U, PRM, n, H, ch_limit, DIAG, FLAGS)
 
 
 def advance(
@@ -845,6 +848,7 @@ __all__ = [
     "TAIL_FACTOR",
     "advance",
     "advance_batch",
+    "advance_batch_parallel",
     "advance_batch_serial",
     "rhs_evaluations",
     "ros2_step",
