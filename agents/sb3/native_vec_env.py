@@ -61,27 +61,39 @@ def split_infos(infos: dict[str, Any], n: int) -> list[dict[str, Any]]:
     list of N dicts. Entries of shape () become Python scalars (as the single env reports
     them), others are copied arrays.
     """
+    keys = [key for key in infos if not key.startswith("_")]
+    masks = [infos.get(f"_{key}") for key in keys]
+    if not any(isinstance(infos[key], dict) or (mask is not None and not mask.all())
+               for key, mask in zip(keys, masks, strict=True)):
+        # every key in every environment (a step's info): the rows of all keys at once
+        if not keys:
+            return [{} for _ in range(n)]
+        columns = [_items(np.asarray(infos[key]), copy=True) for key in keys]
+        return [dict(zip(keys, row, strict=True)) for row in zip(*columns, strict=True)]
     out: list[dict[str, Any]] = [{} for _ in range(n)]
-    for key, value in infos.items():
-        if key.startswith("_"):
-            continue
-        mask = infos.get(f"_{key}", np.ones(n, dtype=bool))
+    for key, mask in zip(keys, masks, strict=True):
+        value = infos[key]
+        rows = np.arange(n) if mask is None else np.flatnonzero(mask)
         if isinstance(value, dict):
             nested = split_infos(value, n)
-            for i in np.flatnonzero(mask).tolist():
+            for i in rows.tolist():
                 out[i][key] = nested[i]
             continue
-        value = np.asarray(value)
-        if value.dtype == object:
-            items = list(value)
-        elif value.ndim == 1:
-            items = value.tolist()  # Python scalars
-        else:
-            items = list(value.copy())  # rows of one private copy
-        rows: Sequence[int] = range(n) if mask.all() else np.flatnonzero(mask).tolist()
-        for i in rows:
-            out[i][key] = items[i]
+        # only the rows that carry the key (e.g. the environments just reset)
+        for i, item in zip(rows.tolist(), _items(np.asarray(value)[rows], copy=False),
+                           strict=True):
+            out[i][key] = item
     return out
+
+
+def _items(value: np.ndarray, copy: bool) -> list[Any]:
+    """The rows of ``value`` (N, ...) as a list: Python scalars for shape (N,), objects as
+    they are, else rows of one private copy (``copy`` False: ``value`` is one already)."""
+    if value.dtype == object:
+        return list(value)
+    if value.ndim == 1:
+        return value.tolist()
+    return list(value.copy() if copy else value)
 
 
 def _row(obs: Any, i: int) -> Any:

@@ -228,20 +228,23 @@ def _info_field(info: Any, key: str) -> np.ndarray:
     raise TypeError(f"info must be a dict or a sequence of dicts (got {type(info).__name__})")
 
 
-def physics_readouts(env: Any, readout: DictReadout) -> dict[str, np.ndarray]:
+def physics_readouts(env: Any, readout: DictReadout,
+                     values: np.ndarray | None = None) -> dict[str, np.ndarray]:
     """Object pose and velocity, deformations, drawn parameters and goal of an unwrapped env.
 
     Single env (its one-hand ``physics`` and ``goal``): shapes (3,), (3,), (4,), (6,),
     (goal_dim,). Native vector env (its N-hand ``physics``, all N rows whatever was reset):
     (N, 3), (N, 3), (N, 4), (N, 6), (N, goal_dim). Units as :meth:`DictReadout.privileged`.
+    ``values``: the drawn parameters if the caller has them (else read from the physics).
     """
     physics = env.physics
-    params = physics.params
-    if isinstance(params, tuple):  # the vector env's batched physics: one HandParams per env
-        values = np.array([readout.param_values(p) for p in params])
+    if isinstance(physics.params, tuple):  # the vector env's batched physics
+        if values is None:
+            values = np.array([readout.param_values(p) for p in physics.params])
         goal = env.goals
     else:
-        values = readout.param_values(params)
+        if values is None:
+            values = readout.param_values(physics.params)
         goal = env.goal
     return {
         "object_pose": physics.object_pose,
@@ -304,9 +307,23 @@ class VectorDictObservation(VectorWrapper):
         self.readout = DictReadout(base.config, goal_obs, privileged_obs)
         self.single_observation_space = self.readout.space()
         self.observation_space = batch_space(self.single_observation_space, env.num_envs)
+        # the drawn parameters of each hand, read again only when its HandParams (immutable)
+        # is another object: episodes restart a few hands a step
+        self._params: list[Any] = [None] * env.num_envs
+        self._values = np.zeros((env.num_envs, len(_PARAM_FIELDS)))
+
+    def _param_values(self) -> np.ndarray:
+        """The drawn parameters of every hand, (N, 6) (fresh)."""
+        base: Any = self.env.unwrapped
+        for i, params in enumerate(base.physics.params):
+            if params is not self._params[i]:
+                self._params[i] = params
+                self._values[i] = self.readout.param_values(params)
+        return self._values.copy()
 
     def _build(self, obs: np.ndarray) -> dict[str, np.ndarray]:
-        return self.readout.build(obs, physics_readouts(self.env.unwrapped, self.readout))
+        return self.readout.build(obs, physics_readouts(self.env.unwrapped, self.readout,
+                                                        self._param_values()))
 
     def reset(self, *, seed: Any = None, options: dict[str, Any] | None = None):
         obs, info = self.env.reset(seed=seed, options=options)

@@ -130,6 +130,28 @@ def test_split_infos_masks_and_scalars():
     np.testing.assert_array_equal(out[1]["v"], np.ones(3))
 
 
+def test_split_infos_of_a_step_keeps_key_order_and_copies_rows():
+    # every key in every environment (a step's info): the rows of all keys at once, in the
+    # keys' order, arrays private (writing a row leaves the batched info as it was)
+    v = np.arange(6.0).reshape(2, 3)
+    infos = {"v": v, "_v": np.array([True, True]), "k": np.array([3, 4]),
+             "_k": np.array([True, True]), "s": np.array([None, "slip"], dtype=object),
+             "_s": np.array([True, True])}
+    out = split_infos(infos, 2)
+    assert [list(d) for d in out] == [["v", "k", "s"]] * 2
+    assert out[1]["k"] == 4 and type(out[1]["k"]) is int and out[1]["s"] == "slip"
+    out[0]["v"][0] = -1.0
+    assert v[0, 0] == 0.0
+    np.testing.assert_array_equal(out[1]["v"], [3.0, 4.0, 5.0])
+    # a nested dict under a mask (SameStep's final_info) goes through the row-by-row path
+    nested = {"final_info": {"x": np.array([0.0, 7.0]), "_x": np.array([False, True])},
+              "_final_info": np.array([False, True]), "k": np.array([1, 2]),
+              "_k": np.array([True, True])}
+    out = split_infos(nested, 2)
+    assert out[0] == {"k": 1} and out[1] == {"final_info": {"x": 7.0}, "k": 2}
+    assert list(out[1]) == ["final_info", "k"]
+
+
 def test_train_cli_runs_on_the_native_vec_env(tmp_path):
     from agents import train
 

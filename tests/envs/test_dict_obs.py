@@ -116,11 +116,13 @@ def test_check_env_passes_and_bad_keywords():
         gym.make("SoftHandTranslate-v0", privileged_obs="yes")
 
 
-def test_vector_env_matches_single_envs():
+# the Random id draws each episode's parameters: the privileged deviations of restarted hands
+@pytest.mark.parametrize("env_id", ["SoftHandPose-v0", "SoftHandPoseRandom-v0"])
+def test_vector_env_matches_single_envs(env_id):
     n, keys = 3, {"goal_obs": True, "privileged_obs": True, "max_episode_steps": 15}
-    native = gym.make_vec("SoftHandPose-v0", num_envs=n,
+    native = gym.make_vec(env_id, num_envs=n,
                           vectorization_mode="vector_entry_point", **KWARGS, **keys)
-    sync = SyncVectorEnv([lambda: gym.make("SoftHandPose-v0", **KWARGS, **keys)
+    sync = SyncVectorEnv([lambda: gym.make(env_id, **KWARGS, **keys)
                           for _ in range(n)])
     assert native.single_observation_space == sync.single_observation_space
     o1, _ = native.reset(seed=5)
