@@ -35,7 +35,7 @@ from typing import Any
 import numpy as np
 from numba import njit
 
-from softhand_env.envs.observation import ANGLE_SCALE, OBS_BOUND, POSITION_SCALE
+from softhand_env.envs.observation import ANGLE_SCALE, POSITION_SCALE
 from softhand_env.envs.options import check_keyword
 from softhand_env.envs.task_configs import TASK_TARGETS, load_task_config
 from softhand_env.physics import jit_cache  # noqa: F401  (the package stamp on cached kernels)
@@ -166,10 +166,6 @@ class Task:
         """:meth:`sample_goal` of K episodes, row k from ``rngs[k]``: shape (K, goal_dim)."""
         return np.zeros((len(rngs), 0))
 
-    def goal_observation(self, goal: np.ndarray) -> np.ndarray:
-        """The goal scaled for the observation, shape (..., goal_dim)."""
-        return np.asarray(goal, dtype=np.float64)
-
     def goal_pose(self, pose: np.ndarray, goal: np.ndarray) -> tuple[float, float] | None:
         """Object (x, theta) at the goal for drawing: targets from ``goal``, the rest from the
         object pose ``pose`` (x, y, theta); None without a goal."""
@@ -207,18 +203,6 @@ class Task:
         """
         return (), False
 
-    def score(
-        self, pose: np.ndarray, goal: np.ndarray, ctrl: np.ndarray, failed: np.ndarray,
-        grasped: np.ndarray, rows: np.ndarray, terms: np.ndarray, success: np.ndarray,
-        reward: np.ndarray,
-    ) -> None:
-        """:meth:`evaluate` of the environments ``rows`` (int (K,)) of a batch, in place: object
-        poses (N, 3), goals (N, goal_dim), ``ctrl`` (N,), ``failed`` and ``grasped`` bool (N,)
-        in; the terms' columns of ``terms`` (len(:attr:`terms`), N), ``success`` bool (N,) and
-        ``reward`` (N,) (their sum) out."""
-        success[rows] = False
-        reward[rows] = 0.0
-
 
 NoTask = Task
 
@@ -251,6 +235,7 @@ class GoalTask(Task):
         self.targets = tuple(targets)
         self.terminate_on_success = bool(terminate_on_success)
         self._ranges = np.array([t.goal_range for t in self.targets])
+        # the goal observation: goal / obs_scale per target, clipped (fused.finish_rows)
         self._obs_scales = np.array([t.obs_scale for t in self.targets])
         # the constants of score_rows
         self._index = np.array([t.index for t in self.targets], dtype=np.int64)
@@ -301,11 +286,6 @@ class GoalTask(Task):
         u += low
         return u
 
-    def goal_observation(self, goal: np.ndarray) -> np.ndarray:
-        scaled = np.asarray(goal, dtype=np.float64) / self._obs_scales
-        # np.clip's values, without its dispatch (several microseconds a call)
-        return np.minimum(np.maximum(scaled, -OBS_BOUND), OBS_BOUND)
-
     def evaluate(self, pose, goal, ctrl, failed, grasped, scalar=None):
         coords = [np.asarray(pose[t.index], dtype=np.float64) for t in self.targets]
         goals = [np.asarray(g, dtype=np.float64) for g in goal]
@@ -330,10 +310,6 @@ class GoalTask(Task):
         if scalar or (scalar is None and shape == ()):
             return tuple(terms[:, 0].tolist()), bool(success[0])
         return tuple(t.reshape(shape) for t in terms), success.reshape(shape)
-
-    def score(self, pose, goal, ctrl, failed, grasped, rows, terms, success, reward):
-        score_rows(pose, goal, ctrl, failed, grasped, rows, self._index, self._tolerance,
-                   self._scale, self._weights, terms, success, reward)
 
     def __repr__(self) -> str:
         return f"GoalTask({self.name!r}, targets={[t.name for t in self.targets]})"
