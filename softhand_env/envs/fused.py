@@ -19,9 +19,10 @@ twentieth of a ROS2 control step)::
 
 Each piece is the same compiled function the batched path calls, on the same arrays, so the
 numbers are bit for bit those of the batched path (``tests/envs/test_one_episode_step.py``).
-The batched path (:meth:`~softhand_env.envs.transition.EpisodeBatch.step`) records a step of N
-hands with :func:`record_step` (status, contact check, read-outs, validated box; the single
-episode's step calls it too) and starts episodes with :func:`write_starts` and
+The batched path (:meth:`~softhand_env.envs.transition.EpisodeBatch.step`) runs what follows
+the physics step of N hands in :func:`finish_step` (the step recorded by :func:`record_step`:
+status, contact check, read-outs, validated box, as the single episode's step records it; then
+score, endings and observation frames) and starts episodes with :func:`write_starts` and
 :func:`finish_rows`.
 The arguments that stay the same over an episode batch's life (constants and the arrays
 written in place) travel in one :class:`Arguments` record (:func:`control_step_packed`):
