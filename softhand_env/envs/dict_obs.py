@@ -238,13 +238,14 @@ def physics_readouts(env: Any, readout: DictReadout,
     ``values``: the drawn parameters if the caller has them (else read from the physics).
     """
     physics = env.physics
-    if isinstance(physics.params, tuple):  # the vector env's batched physics
+    params = physics.params
+    if isinstance(params, tuple):  # the vector env's batched physics: one HandParams per env
         if values is None:
-            values = np.array([readout.param_values(p) for p in physics.params])
+            values = np.array([readout.param_values(p) for p in params])
         goal = env.goals
     else:
         if values is None:
-            values = readout.param_values(physics.params)
+            values = readout.param_values(params)
         goal = env.goal
     return {
         "object_pose": physics.object_pose,

@@ -67,6 +67,38 @@ ENDING_SUCCESS = ENDING_SLIP + 2
 
 
 @njit(cache=True)
+def shift_history(OBS, frame, history):
+    """Shift the observation history of every row of OBS (N, size) one frame older, in place:
+    of its first ``history`` entries, frames of ``frame`` entries, newest first; the newest
+    slot keeps its old values until written."""
+    for s in range(OBS.shape[0]):
+        for j in range(history - 1, frame - 1, -1):
+            OBS[s, j] = OBS[s, j - frame]
+
+
+@njit(cache=True)
+def spread_frame(OBS, ROWS, frame, copies):
+    """Copy the newest frame (the first ``frame`` entries) of the rows ROWS (int (K,)) of OBS
+    (N, size) into their ``copies - 1`` older history slots, in place (``copies`` 1: none)."""
+    for k in range(ROWS.shape[0]):
+        s = ROWS[k]
+        for c in range(1, copies):
+            for j in range(frame):
+                OBS[s, c * frame + j] = OBS[s, j]
+
+
+@njit(cache=True)
+def observe_read(READ, tactile, OBS):
+    """The newest frame of ideal sensors (:func:`~softhand_env.envs.observation.observe_rows`;
+    ``tactile``: with the deformations) of every row of the read-outs READ (N,
+    ``READ_SIZE``) into the first columns of OBS (N, size)."""
+    observe_rows(READ[:, TH_1 : TH_1 + 2], READ[:, NQ + TH_1 : NQ + TH_1 + 2],
+                 READ[:, READ_SETPOINT : READ_SETPOINT + 2],
+                 READ[:, READ_TORQUE : READ_TORQUE + 2], READ[:, DN_1 : DT_1 + 2], tactile,
+                 OBS)
+
+
+@njit(cache=True)
 def control_step(A, PREV, READ, ros2, H, kind, max_delta, mid, half, low, high, CMD, CTRL,
                  SENT, LATENCY, APPLIED, Y, U, PRM, TIME, n, ch_limit, dn_limit, base_limit,
                  FLAGS, DIAG, FAILED, GRASPED, REASON, MU, NO_SKIP,
@@ -142,13 +174,8 @@ def control_step(A, PREV, READ, ros2, H, kind, max_delta, mid, half, low, high, 
                 READ, RADIUS, VALIDATED, OUT_FLAGS, OUT_ERROR, OUT_FAILED, OUT_GRASPED,
                 OUT_REASON, IMPULSE, RATIO, TENSION, CONTACT)
     if observe:
-        o = OBS[0]
-        for j in range(history - 1, frame - 1, -1):
-            o[j] = o[j - frame]
-        observe_rows(READ[:, TH_1 : TH_1 + 2], READ[:, NQ + TH_1 : NQ + TH_1 + 2],
-                     READ[:, READ_SETPOINT : READ_SETPOINT + 2],
-                     READ[:, READ_TORQUE : READ_TORQUE + 2],
-                     READ[:, DN_1 : DT_1 + 2], tactile, OBS)
+        shift_history(OBS, frame, history)
+        observe_read(READ, tactile, OBS)
     FAILED_ONE[0] = OUT_FAILED[0] or (stop and CONTACT[0])
     if score:
         score_rows(READ[:, X_OBJ : X_OBJ + 3], GOAL, CTRL, FAILED_ONE, OUT_GRASPED, ROW, INDEX,
@@ -215,15 +242,9 @@ def finish_step(outcome, SKIP, STEP_FAILED, STEP_GRASPED, STEP_CONTACT, CTRL, RE
         TERMINATED[s] = failed[s] or (on_success and S.SUCCESS[s])
     mark_endings(STEP_CONTACT, S.TENSION, TERMINATED, failed, S.stop, on_success,
                  S.OUT_REASON)
-    obs, frame = S.OBS, S.frame
-    for s in range(obs.shape[0]):
-        for j in range(S.history - 1, frame - 1, -1):
-            obs[s, j] = obs[s, j - frame]
+    shift_history(S.OBS, S.frame, S.history)
     if frames:
-        observe_rows(READ[:, TH_1 : TH_1 + 2], READ[:, NQ + TH_1 : NQ + TH_1 + 2],
-                     READ[:, READ_SETPOINT : READ_SETPOINT + 2],
-                     READ[:, READ_TORQUE : READ_TORQUE + 2], READ[:, DN_1 : DT_1 + 2],
-                     S.tactile, obs)
+        observe_read(READ, S.tactile, S.OBS)
 
 
 @njit(cache=True)
@@ -245,10 +266,7 @@ def restart_rows(Y, U, PRM, ROWS, READ, RADIUS, VALIDATED, ERROR, GRASPED, obser
         _constraint_errors(Y, PRM, ROWS[k : k + 1], ERROR[s : s + 1])
         GRASPED[s] = failure.holds(READ[s, DN_1], READ[s, DN_2])
         if observe:
-            observe_rows(r[:, TH_1 : TH_1 + 2], r[:, NQ + TH_1 : NQ + TH_1 + 2],
-                         r[:, READ_SETPOINT : READ_SETPOINT + 2],
-                         r[:, READ_TORQUE : READ_TORQUE + 2], r[:, DN_1 : DT_1 + 2], tactile,
-                         OBS[s : s + 1])
+            observe_read(r, tactile, OBS[s : s + 1])
 
 
 @njit(cache=True)
@@ -279,9 +297,7 @@ def finish_rows(Y, U, PRM, ROWS, READ, RADIUS, VALIDATED, ERROR, GRASPED, observ
         s = ROWS[k]
         for t in range(GOAL.shape[1]):
             OBS[s, at + t] = min(max(GOAL[s, t] / GOAL_SCALE[t], -bound), bound)
-        for c in range(1, copies):
-            for j in range(frame):
-                OBS[s, c * frame + j] = OBS[s, j]
+    spread_frame(OBS, ROWS, frame, copies)
 
 
 @njit(cache=True)

@@ -31,6 +31,8 @@ from softhand_env.envs.fused import (
     finish_rows,
     finish_step,
     pack_arguments,
+    shift_history,
+    spread_frame,
     write_starts,
 )
 from softhand_env.envs.observation import (
@@ -305,8 +307,7 @@ class EpisodeBatch:
             obs[rows, :f] = self._frames(rows=rows, rngs=rngs, first=True, subset=True)
         if noise > 0:  # each row from its environment's generator
             add_frame_noise_rows(obs, rows, f, noise, [_generator(rngs, i) for i in rows])
-        for k in range(1, layout.history_len):
-            obs[rows, k * f : (k + 1) * f] = obs[rows, :f]
+        spread_frame(obs, rows, f, layout.history_len)
 
     def _frames(
         self,
@@ -413,10 +414,9 @@ class EpisodeBatch:
         elif terminated and not failed:
             self._ending[0] = ENDING_SUCCESS
         layout = cfg.layout
-        f, h = layout.frame_size, layout.history_size
+        f = layout.frame_size
         if self.sensing is not None:  # the fused call wrote the frame of ideal sensors only
-            if h > f:
-                self.obs[:, f:h] = self.obs[:, : h - f]
+            shift_history(self.obs, f, layout.history_size)
             self._frames(self.obs, rows=_ROW_0, rngs=(rng,))
         noise = cfg.randomization.obs_noise
         if noise > 0:
@@ -479,25 +479,27 @@ class EpisodeBatch:
         after ``copies``: a start state is scored with no control cost and no failure, into
         scratch terms and reward."""
         task = self.task
-        score, goal, index, tolerance, scale, weights = self._score_arguments(
-            self._failed_one, _ROW_0)[:6]
         goal_scale = task._obs_scales if isinstance(task, GoalTask) else np.zeros(0)
-        return (score, goal, index, tolerance, scale, weights, self._zero, self._false,
-                self._scratch_terms, self.success, self._scratch_reward, goal_scale,
-                OBS_BOUND)
+        return (*self._task_arguments(), self._zero, self._false, self._scratch_terms,
+                self.success, self._scratch_reward, goal_scale, OBS_BOUND)
+
+    def _task_arguments(self) -> tuple[Any, ...]:
+        """Whether the task scores, the goals and the task's constants of
+        :func:`~softhand_env.envs.tasks.score_rows` (empty without a goal)."""
+        task = self.task
+        if isinstance(task, GoalTask):
+            constants = (task._index, task._tolerance, task._scale, task._weights)
+        else:
+            constants = (np.zeros(0, dtype=np.int64), np.zeros(0), np.zeros(0), np.zeros(4))
+        return (isinstance(task, GoalTask), self.goal, *constants)
 
     def _score_arguments(self, failed_one: np.ndarray, rows: np.ndarray) -> tuple[Any, ...]:
         """The scoring arguments of :func:`~softhand_env.envs.fused.control_step`: whether
         the task scores, its goal and constants (empty without a goal), the outputs
         (``failed_one`` the step's failure and ``rows`` the rows scored, see
         :meth:`_fused_arguments`)."""
-        task = self.task
-        if isinstance(task, GoalTask):
-            constants = (task._index, task._tolerance, task._scale, task._weights)
-        else:
-            constants = (np.zeros(0, dtype=np.int64), np.zeros(0), np.zeros(0), np.zeros(4))
-        return (isinstance(task, GoalTask), self.goal, *constants, failed_one,
-                self.terms, self.success, self._reward, rows)
+        return (*self._task_arguments(), failed_one, self.terms, self.success, self._reward,
+                rows)
 
     def _step_fused(self, actions: np.ndarray) -> np.ndarray:
         """The physics and the rest of :meth:`step` of one episode in one compiled call
