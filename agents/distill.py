@@ -11,11 +11,14 @@ wrappers' features) and learns to act as the teacher would, by DAgger (Ross et a
    action with probability ``beta_k = beta_decay ** k`` (iteration k), else the student's;
 2. label every visited state with the teacher's deterministic action (from the privileged
    observation of that state) and add (blind observation, label) to the data set;
-3. fit the student's mean action to the labels (mean squared error, Adam; the step size goes
-   linearly from ``--lr`` to ``--lr-final``), then validate the student alone on the
-   validation goals (``reset(seed=eval_seed + k)``, the benchmark's success rule) and keep the
-   best iteration (``--select``: by success rate, then median final error; or by success
-   rate, then the strict rate within 0.5 mm / 0.5 deg, then median final error).
+3. fit the student's mean action to the labels (mean squared error, or with
+   ``--squeeze-expectile`` an expectile of the squeeze component, :func:`imitation_loss`;
+   Adam, the step size goes linearly from ``--lr`` to ``--lr-final``), then validate the
+   student alone on the validation goals (``reset(seed=eval_seed + k)``, the benchmark's
+   success rule) and keep the best iteration (``--select``: by success rate, then median final
+   error; or by success rate, then the strict rate within 0.5 mm / 0.5 deg, then median final
+   error; or, ``safe``, by success rate less the rate of episodes ended by a physical failure,
+   then as ``strict``).
 
 The student may read more than the teacher's blind observation: a longer history of frames
 (``history_len``), the fingertips' tactile entries (``obs_mode: proprio_tactile``) and the
@@ -134,8 +137,15 @@ def make_distill_parser() -> argparse.ArgumentParser:
                         "teacher's action L steps later, when the command takes effect")
     p.add_argument("--select", choices=SELECT_RULES, default="success",
                    help="rank of the validated iterations, the best kept: success (success "
-                        "rate, then median final error) or strict (success rate, then the "
-                        "strict rate within 0.5 mm / 0.5 deg, then median final error)")
+                        "rate, then median final error), strict (success rate, then the "
+                        "strict rate within 0.5 mm / 0.5 deg, then median final error) or safe "
+                        "(success rate minus the rate of episodes ended by a physical failure, "
+                        "then as strict)")
+    p.add_argument("--squeeze-expectile", type=float, default=0.5,
+                   help="fit this expectile of the labels' squeeze component (both fingers "
+                        "closing) instead of their mean, in (0, 1): below 0.5 closing more "
+                        "than the teacher costs more than closing less (default 0.5: plain "
+                        "squared error)")
     p.add_argument("--blind-teacher", action="store_true",
                    help="the teacher is a blind policy (e.g. a distilled student that reads "
                         "its fingertips) instead of a privileged_obs run: the rollouts read "
@@ -272,7 +282,8 @@ def rollout_layout(student: ObservationLayout, teacher: ObservationLayout,
 
 def validate(model: Any, venv: Any, targets: Sequence[str], eval_seed: int,
              stop: DeferredSignals | None = None) -> dict[str, float]:
-    """Success, strict success (``success_strict``, within 0.5 mm / 0.5 deg) and final errors
+    """Success, strict success (``success_strict``, within 0.5 mm / 0.5 deg), the rate of
+    episodes ended by a physical failure (``failure_rate``) and final errors
     of the deterministic student on goals ``eval_seed + k`` (env k of the native SB3 vector env
     ``venv``, re-seeded here; the first episode of each). ``stop``: checked before every step
     (:class:`~agents.sb3.interrupts.Interrupted` once a signal was received)."""
@@ -293,15 +304,21 @@ def validate(model: Any, venv: Any, targets: Sequence[str], eval_seed: int,
     summary = summarize(targets, successes, errors)
     summary["success_strict"] = float(np.mean(
         [strict_success(ok, err, targets) for ok, err in zip(successes, errors, strict=True)]))
+    summary["failure_rate"] = float(np.mean(
+        [info.get("termination_reason") not in (None, "success") for info in infos]))
     return summary
 
 
 def iteration_rank(summary: dict[str, float], targets: Sequence[str],
                    select: str) -> tuple[float, ...]:
     """The rank of a validated iteration under ``select`` (larger is better;
-    :data:`~agents.runs.records.SELECT_RULES`): (success rate, -error score) or (success
-    rate, strict success rate, -error score)."""
+    :data:`~agents.runs.records.SELECT_RULES`): (success rate, -error score), (success rate,
+    strict success rate, -error score) or (success rate - failure rate, strict success rate,
+    -error score)."""
     score = -error_score(summary, targets)
+    if select == "safe":
+        return (summary["success_rate"] - summary["failure_rate"], summary["success_strict"],
+                score)
     if select == "strict":
         return summary["success_rate"], summary["success_strict"], score
     return summary["success_rate"], score
@@ -384,6 +401,31 @@ def minibatches(n: int, schedule: DaggerSchedule) -> Iterator[Any]:
         perm = torch.randperm(n)
         for start in range(0, n, b):
             yield perm[start:start + b]
+
+
+def imitation_loss(pred: Any, label: Any, squeeze_expectile: float = 0.5) -> Any:
+    """The DAgger fit's loss (torch scalar) of the student's mean actions ``pred`` against the
+    teacher's ``label`` (torch (B, act_dim), the normalised action space).
+
+    With ``squeeze_expectile`` tau = 0.5 the mean squared error. Otherwise the two-finger
+    action is written in the orthonormal (rotate, squeeze) coordinates r = (a_1 - a_2) / sqrt 2,
+    s = (a_1 + a_2) / sqrt 2 (s > 0 closes both fingers; the finger actions share one range)
+    and the squeeze error u = s_label - s_pred is weighted 2 tau where u >= 0 (the student
+    closes less than the label) and 2 (1 - tau) where u < 0 (it closes more): the minimiser is
+    the tau-expectile of the labels' squeeze in a state, which for tau < 0.5 lies below their
+    mean where states the student cannot tell apart carry different labels, and equals the
+    label where they do not. The rotate error is squared as is; the sum is divided by
+    ``act_dim`` like the mean squared error, which tau = 0.5 reproduces exactly."""
+    err = label - pred
+    if squeeze_expectile == 0.5:
+        return (err ** 2).mean()
+    if err.shape[-1] != 2:
+        raise UserError(f"--squeeze-expectile needs the two-finger action (got {err.shape[-1]} "
+                        "action components)")
+    rotate = (err[:, 0] - err[:, 1]) / 2 ** 0.5
+    squeeze = (err[:, 0] + err[:, 1]) / 2 ** 0.5
+    weight = 2 * (squeeze_expectile * (squeeze >= 0) + (1 - squeeze_expectile) * (squeeze < 0))
+    return (rotate ** 2 + weight * squeeze ** 2).mean() / 2
 
 
 def lr_at(k: int, iterations: int, lr: float, lr_final: float) -> float:
@@ -492,7 +534,8 @@ def dagger(model: Any, teacher: ModelPolicy, env_id: str, kwargs: dict[str, Any]
             with fitting_threads(fit_threads):
                 for idx in minibatches(n, schedule):
                     signals.check()
-                    loss = ((student_mean(policy, x_all[idx]) - y_all[idx]) ** 2).mean()
+                    loss = imitation_loss(student_mean(policy, x_all[idx]), y_all[idx],
+                                          schedule.squeeze_expectile)
                     opt.zero_grad()
                     loss.backward()
                     opt.step()
@@ -502,7 +545,8 @@ def dagger(model: Any, teacher: ModelPolicy, env_id: str, kwargs: dict[str, Any]
             curve.append(point)
             log(f"iteration {k}: beta {beta:.3f}, loss {point['loss']:.5f}, {n} samples, "
                 f"validation success {summary_success_text(summary)}, strict "
-                f"{summary['success_strict']:.0%} ({point['wall_s']} s)")
+                f"{summary['success_strict']:.0%}, failures {summary['failure_rate']:.0%} "
+                f"({point['wall_s']} s)")
             rank = iteration_rank(summary, targets, schedule.select)
             if best is None or rank > best["rank"]:
                 best = {"rank": rank, "iteration": k, "env_steps": steps, **summary}

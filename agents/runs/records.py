@@ -36,7 +36,7 @@ class EvalSettings:
 #: Ranks of the validated DAgger iterations (the best is kept): ``success`` orders by the
 #: success rate, then by the lower median final error; ``strict`` by the success rate, then by
 #: the strict success rate (within 0.5 mm / 0.5 deg), then by the median final error.
-SELECT_RULES = ("success", "strict")
+SELECT_RULES = ("success", "strict", "safe")
 
 
 @dataclass
@@ -51,8 +51,11 @@ class DaggerSchedule:
     ``latency_labels``: label with the teacher's action when the command takes effect
     (:class:`agents.distill.DelayedLabels`); ``select``: how validated iterations are ranked
     (:data:`SELECT_RULES`); ``blind_teacher``: the teacher is a blind policy, not a
-    privileged one (:func:`agents.distill.rollout_layout`). Range-checked on construction
-    (UserError naming the command-line flag)."""
+    privileged one (:func:`agents.distill.rollout_layout`); ``squeeze_expectile``: the
+    expectile of the labels' squeeze component the student fits (0.5: the mean, plain squared
+    error; below 0.5 closing more than the label costs more than closing less,
+    :func:`agents.distill.imitation_loss`). Range-checked on construction (UserError naming the
+    command-line flag)."""
 
     iterations: int = 40
     rollout_steps: int = 50
@@ -66,6 +69,7 @@ class DaggerSchedule:
     latency_labels: bool = False
     select: str = "success"
     blind_teacher: bool = False
+    squeeze_expectile: float = 0.5
 
     def __post_init__(self) -> None:
         """Range checks (UserError on a bad value)."""
@@ -79,6 +83,9 @@ class DaggerSchedule:
         check_range("--updates", self.updates, 0, 1_000_000)
         check_range("--batch-size", self.batch_size, 1, 1_000_000)
         check_range("--max-samples", self.max_samples, 1, 100_000_000)
+        if not 0.0 < self.squeeze_expectile < 1.0:
+            raise UserError(f"--squeeze-expectile must be in (0, 1) "
+                            f"(got {self.squeeze_expectile!r})")
         for flag, value in (("--lr", self.lr), ("--lr-final", self.lr_final)):
             if not 0.0 < value <= 1.0:
                 raise UserError(f"{flag} must be in (0, 1] (got {value!r})")

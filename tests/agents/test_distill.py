@@ -5,6 +5,7 @@ from __future__ import annotations
 from pathlib import Path
 from types import SimpleNamespace
 
+import gymnasium as gym
 import numpy as np
 import pytest
 import torch
@@ -275,19 +276,27 @@ def test_minibatches_make_epochs_over_the_data_or_a_fixed_number_of_draws():
 
 
 def test_iteration_rank_orders_by_success_then_strict_rate_or_error():
-    def summary(success, strict, x_mm, theta_deg):
+    def summary(success, strict, x_mm, theta_deg, failures=0.0):
         return {"success_rate": success, "success_strict": strict, "median_x_mm": x_mm,
-                "median_theta_deg": theta_deg}
+                "median_theta_deg": theta_deg, "failure_rate": failures}
 
     targets = ("x", "theta")
     precise = summary(1.0, 0.95, 0.20, 0.30)  # more strict successes, larger median error
     close = summary(1.0, 0.90, 0.10, 0.20)
     better = summary(1.01, 0.0, 5.0, 5.0)  # a higher success rate outranks both
-    for select, winner in (("success", close), ("strict", precise)):
+    for select, winner in (("success", close), ("strict", precise), ("safe", precise)):
         ranks = {id(s): distill.iteration_rank(s, targets, select)
                  for s in (precise, close, better)}
         assert max(ranks, key=ranks.get) == id(better)
         assert max((precise, close), key=lambda s: ranks[id(s)]) is winner
+    # safe: a failure counts against the success rate, so 96 % with 1 % failures ranks below
+    # 95.5 % without, and above 94 % without
+    failing = summary(0.96, 0.9, 0.1, 0.1, failures=0.01)
+    ranks = [distill.iteration_rank(s, targets, "safe")
+             for s in (failing, summary(0.955, 0.5, 1, 1), summary(0.94, 0.9, 0.1, 0.1))]
+    assert ranks[1] > ranks[0] > ranks[2]
+    assert distill.iteration_rank(failing, targets, "success") > distill.iteration_rank(
+        summary(0.955, 0.5, 1, 1), targets, "success")
     args = distill.parse_args(["--env", ENV_ID, "--teacher", "t", "--select", "strict"])
     assert args.dagger.select == "strict"
     assert distill.parse_args(["--env", ENV_ID, "--teacher", "t"]).dagger.select == "success"
@@ -296,6 +305,75 @@ def test_iteration_rank_orders_by_success_then_strict_rate_or_error():
     from agents.runs.records import DaggerSchedule
     with pytest.raises(UserError, match="--select"):
         DaggerSchedule(select="loss")
+
+
+def test_validation_counts_the_episodes_a_physical_failure_ends():
+    """``failure_rate``: squeezing with both fingers at the largest step over-compresses the
+    first step, holding the grasp does not; the count agrees with single-env episodes."""
+    from agents.common.metrics import success_kwargs
+
+    kwargs = {"control_dt": 0.16, "max_episode_steps": 12, "max_delta_deg": 8.0}
+    venv = make_sb3_vec_env(ENV_ID, 6, 0, {**kwargs, **success_kwargs(ENV_ID)}, "native")
+    squeeze = np.array([1, 0, 1, 0, 0, 0], dtype=np.float32)  # envs 0 and 2 squeeze
+
+    class Policy:
+        def predict(self, obs, deterministic=True):
+            return np.repeat(squeeze[:, None], 2, axis=1), None
+
+    summary = distill.validate(Policy(), venv, ("theta",), 5000)
+    assert summary["failure_rate"] == pytest.approx(2 / 6)
+    env = gym.make(ENV_ID, **kwargs)
+    reasons = []
+    for k in range(6):
+        env.reset(seed=5000 + k)
+        for _ in range(12):
+            *_, terminated, truncated, info = env.step(np.full(2, squeeze[k], np.float32))
+            if terminated or truncated:
+                break
+        reasons.append(info["termination_reason"])
+    assert reasons[0] == reasons[2] == "overcompressed"
+    assert all(r in (None, "success") for r in reasons[1:2] + reasons[3:])
+
+
+def test_imitation_loss_is_the_squared_error_or_an_expectile_of_the_squeeze():
+    gen = torch.Generator().manual_seed(0)
+    pred, label = torch.randn(64, 2, generator=gen), torch.randn(64, 2, generator=gen)
+    assert torch.equal(distill.imitation_loss(pred, label), ((label - pred) ** 2).mean())
+    # tau = 0.5 through the weighted branch: the (rotate, squeeze) rotation keeps the norm
+    # (float32: equal within a few roundings of 1.2e-7)
+    mse = ((label - pred) ** 2).mean()
+    assert torch.allclose(distill.imitation_loss(pred, label, 0.5 + 1e-12), mse, rtol=1e-6)
+    # a pure squeeze error: closing more than the label costs 2 (1 - tau), less 2 tau
+    zero, close = torch.zeros(1, 2), torch.tensor([[0.1, 0.1]])  # s = 0.1 sqrt 2
+    over = distill.imitation_loss(close, zero, 0.2)  # the student closes more
+    under = distill.imitation_loss(zero, close, 0.2)
+    assert torch.allclose(over, torch.tensor(2 * 0.8 * 0.02 / 2))
+    assert torch.allclose(under, torch.tensor(2 * 0.2 * 0.02 / 2))
+    # a pure rotate error is not weighted
+    turn = torch.tensor([[0.1, -0.1]])
+    assert torch.allclose(distill.imitation_loss(turn, zero, 0.2), ((turn) ** 2).mean())
+    # the constant prediction that minimises it is the tau-expectile of the labels' squeeze
+    s_labels = torch.tensor([0.0, 0.0, 0.0, 1.0])  # one state, four labels
+    labels = torch.stack([s_labels, s_labels], dim=1) / 2 ** 0.5
+    a = torch.zeros(1, 2, requires_grad=True)
+    opt = torch.optim.Adam([a], lr=0.02)
+    for _ in range(3000):
+        opt.zero_grad()
+        distill.imitation_loss(a.expand(4, 2), labels, 0.2).backward()
+        opt.step()
+    s_fit = float(a.sum()) / 2 ** 0.5
+    # expectile e of {0, 0, 0, 1}: 0.2 (1 - e) = 0.8 * 3 e -> e = 0.2 / 2.6
+    assert s_fit == pytest.approx(0.2 / 2.6, abs=1e-4) and s_fit < float(s_labels.mean())
+    assert abs(float(a[0, 0] - a[0, 1])) < 1e-4
+    with pytest.raises(UserError, match="two-finger"):
+        distill.imitation_loss(torch.zeros(2, 3), torch.ones(2, 3), 0.3)
+    from agents.runs.records import DaggerSchedule
+    for bad in (0.0, 1.0, float("nan")):
+        with pytest.raises(UserError, match="--squeeze-expectile"):
+            DaggerSchedule(squeeze_expectile=bad)
+    args = distill.parse_args(["--env", ENV_ID, "--teacher", "t", "--squeeze-expectile", "0.3"])
+    assert args.dagger.squeeze_expectile == 0.3
+    assert distill.parse_args(["--env", ENV_ID, "--teacher", "t"]).dagger.squeeze_expectile == 0.5
 
 
 def test_delayed_labels_pair_a_state_with_the_teacher_action_when_its_command_acts():
