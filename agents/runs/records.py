@@ -35,7 +35,8 @@ class EvalSettings:
 
 #: Ranks of the validated DAgger iterations (the best is kept): ``success`` orders by the
 #: success rate, then by the lower median final error; ``strict`` by the success rate, then by
-#: the strict success rate (within 0.5 mm / 0.5 deg), then by the median final error.
+#: the strict success rate (within 0.5 mm / 0.5 deg), then by the median final error; ``safe``
+#: by the success rate less the rate of episodes ended by a physical failure, then as strict.
 SELECT_RULES = ("success", "strict", "safe")
 
 
