@@ -59,6 +59,7 @@ from agents.common.env_factory import make_env, task_targets, wrapper_list
 from agents.common.metrics import (
     error_score,
     final_errors,
+    is_failure,
     strict_success,
     success_kwargs,
     summarize,
@@ -305,7 +306,7 @@ def validate(model: Any, venv: Any, targets: Sequence[str], eval_seed: int,
     summary["success_strict"] = float(np.mean(
         [strict_success(ok, err, targets) for ok, err in zip(successes, errors, strict=True)]))
     summary["failure_rate"] = float(np.mean(
-        [info.get("termination_reason") not in (None, "success") for info in infos]))
+        [is_failure(info.get("termination_reason")) for info in infos]))
     return summary
 
 

@@ -52,7 +52,7 @@ from agents.common.cli import (
     run_cli,
 )
 from agents.common.env_factory import make_env
-from agents.common.metrics import SUCCESS_TOLERANCE
+from agents.common.metrics import SUCCESS_TOLERANCE, is_failure
 from agents.play.choice import PolicyChoice, build
 from agents.play.rollout import chunks_of, play_chunk, run_episode
 from agents.play.sharding import (
@@ -180,7 +180,7 @@ def outcome_of(episode: dict[str, Any]) -> str:
     if episode["success"]:
         return "success"
     reason = episode["termination_reason"]
-    return "time" if reason in (None, "success") else str(reason)
+    return str(reason) if is_failure(reason) else "time"
 
 
 # --------------------------------------------------------------------------------- runs

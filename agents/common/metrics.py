@@ -5,7 +5,8 @@
 errors of an episode from its last ``info``, :func:`summarize` the table of a goal set.
 :data:`STRICT_TOLERANCE` (0.5 mm / 0.5 deg) is the second, stricter rule (:func:`strict_success`);
 :func:`wilson_interval` is the 95 % score interval of a success rate and :func:`success_text`
-the way every success figure is printed (rate with its interval).
+the way every success figure is printed (rate with its interval); :func:`is_failure` tells an
+episode ended by a physical failure from one that ran out of time or succeeded.
 """
 
 from __future__ import annotations
@@ -82,6 +83,13 @@ def summarize(
     if lengths is not None:
         out["mean_length"] = float(np.mean(lengths))
     return out
+
+
+def is_failure(reason: str | None) -> bool:
+    """Whether an episode's ``info["termination_reason"]`` names a physical failure (slip,
+    tension, over-compression, grasp lost, ...): not None (running, or ended by the time limit)
+    and not ``"success"``."""
+    return reason not in (None, "success")
 
 
 def strict_success(success: bool, errors: dict[str, float], targets: Iterable[str]) -> bool:

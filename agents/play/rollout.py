@@ -20,6 +20,7 @@ import numpy as np
 from agents.common.cli import UserError
 from agents.common.metrics import (
     final_errors,
+    is_failure,
     strict_success,
     success_count,
     summarize,
@@ -108,8 +109,7 @@ def summarize_episodes(episodes: Sequence[dict[str, Any]], targets: Sequence[str
         [ep["length"] for ep in episodes],
     )
     summary["success_strict"] = float(np.mean([ep["success_strict"] for ep in episodes]))
-    summary["n_failures"] = sum(ep["termination_reason"] not in (None, "success")
-                                for ep in episodes)
+    summary["n_failures"] = sum(is_failure(ep["termination_reason"]) for ep in episodes)
     summary["max_friction_ratio"] = max(ep["max_friction_ratio"] for ep in episodes)
     return summary
 

@@ -13,7 +13,7 @@ import yaml
 
 from agents import evaluate
 from agents.common import metrics
-from agents.common.metrics import strict_success, success_text, wilson_interval
+from agents.common.metrics import is_failure, strict_success, success_text, wilson_interval
 from agents.play import test_scores
 from agents.play.rollout import summarize_episodes, summary_yaml
 from agents.runs import loading
@@ -90,6 +90,14 @@ def test_strict_success_needs_the_success_and_half_the_tolerance():
     assert not strict_success(False, {"x_mm": 0.1, "theta_deg": 0.1}, both)  # a failed step
     assert strict_success(True, {"theta_deg": 0.3}, ("theta",))
     assert strict_success(True, {}, ()) and not strict_success(False, {}, ())
+
+
+def test_a_failure_is_an_ending_other_than_the_time_limit_or_success():
+    from softhand_env.physics.failure import REASONS
+
+    assert not is_failure(None) and not is_failure("success")
+    for reason in (*REASONS, "slip", "tension"):
+        assert is_failure(reason)
 
 
 def test_results_summary_carries_both_intervals():
