@@ -4,7 +4,9 @@ that an edit of one recompiles the functions of the others that contain its code
 
 from __future__ import annotations
 
+import os
 import re
+import time
 
 from numba.core import caching
 
@@ -61,3 +63,59 @@ def test_the_stamp_changes_with_any_module(tmp_path):
     assert jit_cache.sources_digest(tuple(files)) == before and len(before) == 32
     files[1].write_text("x = 10\n")
     assert jit_cache.sources_digest(tuple(files)) != before
+
+
+def _cache_file(path, stamp):
+    return caching.IndexDataCacheFile(str(path), "f-1.py311", stamp)
+
+
+def test_concurrent_saves_of_two_versions_each_keep_their_own_machine_code(tmp_path):
+    # two processes compile different versions (keys) of one function at the same time, both
+    # saves in flight at once (both data files written before either index update). numba's
+    # own save, which reads the index, takes the lowest free data-file number, writes the
+    # index, then the data, can give both the number 1 and leave one key naming the other's
+    # code when both read the index before either writes it
+    import threading
+
+    stamp = jit_cache.sources_digest()
+    files = [_cache_file(tmp_path, stamp) for _ in range(2)]
+    both_written = threading.Barrier(2)
+    for f in files:
+        real = f._save_data
+
+        def save_data(name, data, real=real):
+            real(name, data)
+            both_written.wait(timeout=10)
+
+        f._save_data = save_data
+    threads = [threading.Thread(target=f.save, args=(key, data)) for f, key, data in
+               zip(files, ("key_a", "key_b"), ("code_a", "code_b"), strict=True)]
+    for t in threads:
+        t.start()
+    for t in threads:
+        t.join(timeout=20)
+    reader = _cache_file(tmp_path, stamp)
+    # each key names its own data (the lock keeps both entries); nothing else is left
+    assert reader.load("key_a") == "code_a" and reader.load("key_b") == "code_b"
+    assert len(list(tmp_path.glob("f-1.py311.*.nbc"))) == 2
+    # a new version of key_a gets a new file; the file no entry names is removed once it
+    # is old enough not to be another process's save in flight
+    old_a = {p.name for p in tmp_path.glob("f-1.py311.*.nbc")}
+    reader.save("key_a", "code_a2")
+    assert reader.load("key_a") == "code_a2" and reader.load("key_b") == "code_b"
+    assert len(list(tmp_path.glob("f-1.py311.*.nbc"))) == 3  # the old one is young
+    past = time.time() - jit_cache.ORPHAN_AGE_S - 1
+    for p in tmp_path.glob("f-1.py311.*.nbc"):
+        os.utime(p, (past, past))
+    reader.save("key_b", "code_b2")
+    left = {p.name for p in tmp_path.glob("f-1.py311.*.nbc")}
+    assert len(left) == 2 and not left & old_a - {reader._load_index()["key_a"]}
+    assert reader.load("key_a") == "code_a2" and reader.load("key_b") == "code_b2"
+
+
+def test_other_functions_keep_numbas_own_save(tmp_path):
+    f = _cache_file(tmp_path, ("another stamp", 1))
+    f.save("key", "code")
+    assert [p.name for p in tmp_path.glob("*.nbc")] == ["f-1.py311.1.nbc"]  # numba's numbering
+    assert f.load("key") == "code"
+    assert caching.IndexDataCacheFile.save.safe_for == jit_cache.sources_digest()
