@@ -173,7 +173,7 @@ def parse_args(argv: Sequence[str] | None = None) -> DistillSettings:
 
 #: Observation keywords in which the student may read more than its teacher (its observation
 #: then contains the teacher's: more frames of history, tactile entries added to each frame).
-VIEW_KEYS = ("history_len", "obs_mode")
+VIEW_KEYS = ("history_len", "obs_mode", "onset_obs")
 
 
 def check_pair(teacher: ModelPolicy, env_id: str, hp: dict[str, Any],
@@ -209,14 +209,17 @@ def check_pair(teacher: ModelPolicy, env_id: str, hp: dict[str, Any],
                       for kwargs in (t_kwargs, s_kwargs))
     if same_t != same_s:
         raise UserError(f"teacher and student env_kwargs differ (besides privileged_obs, "
-                        f"history_len, obs_mode and the reward's keywords): {t_kwargs} vs "
-                        f"{s_kwargs}")
+                        f"history_len, obs_mode, onset_obs and the reward's keywords): "
+                        f"{t_kwargs} vs {s_kwargs}")
     t_layout, s_layout = view_layout(t_view), view_layout(s_kwargs)
     if not blind_teacher and s_layout.history_len < t_layout.history_len:
         raise UserError(f"the student's history_len ({s_layout.history_len}) must be at least "
                         f"the teacher's ({t_layout.history_len})")
     if not blind_teacher and t_layout.tactile and not s_layout.tactile:
         raise UserError("the teacher reads tactile entries (obs_mode proprio_tactile): so must "
+                        "the student")
+    if not blind_teacher and t_layout.onset and not s_layout.onset:
+        raise UserError("the teacher reads the grasp-onset entries (onset_obs: true): so must "
                         "the student")
     t_wrappers = wrapper_list(teacher.env_wrapper)
     if wrapper_list(hp.get("env_wrapper"))[: len(t_wrappers)] != t_wrappers:
@@ -229,8 +232,10 @@ def check_pair(teacher: ModelPolicy, env_id: str, hp: dict[str, Any],
 
 
 def view_layout(kwargs: dict[str, Any]) -> ObservationLayout:
-    """The frame layout (goal entries left out) of env keywords ``kwargs``."""
-    return ObservationLayout(kwargs.get("obs_mode", "proprio"), kwargs.get("history_len", 1), ())
+    """The frame layout (grasp-onset entries included, goal entries left out) of env keywords
+    ``kwargs``."""
+    return ObservationLayout(kwargs.get("obs_mode", "proprio"), kwargs.get("history_len", 1), (),
+                             onset=bool(kwargs.get("onset_obs", False)))
 
 
 def teacher_view(obs: dict[str, np.ndarray], teacher: ObservationLayout,
@@ -240,10 +245,10 @@ def teacher_view(obs: dict[str, np.ndarray], teacher: ObservationLayout,
 
     The blind part, (B, student.history_size + rest), keeps the newest ``teacher.history_len``
     frames (frames are newest first), of each frame its first ``teacher.frame_size`` entries
-    (the proprio entries precede the tactile ones), and what follows the frames (goal, wrapper
-    features) up to the teacher's blind size ``teacher_size`` (all of it when None: the
-    features of wrappers the student has beyond the teacher's come last); the other keys are
-    shared.
+    (the proprio entries precede the tactile ones), the grasp-onset entries if the teacher
+    reads them (``onset_obs``), and what follows (goal, wrapper features) up to the teacher's
+    blind size ``teacher_size`` (all of it when None: the features of wrappers the student has
+    beyond the teacher's come last); the other keys are shared.
     """
     blind = obs[BLIND_KEY]
     view = blind_view(blind, teacher, student, teacher_size)
@@ -255,30 +260,36 @@ def blind_view(blind: np.ndarray, view: ObservationLayout, source: ObservationLa
     """The blind observation of layout ``view`` (blind size ``size``) contained in ``blind``,
     one of layout ``source`` (:func:`teacher_view`'s rule; ``blind`` itself when they are the
     same)."""
-    same_frames = (view.history_len, view.frame_size) == (source.history_len,
-                                                           source.frame_size)
+    if view.onset and not source.onset:
+        raise ValueError("the view reads the grasp-onset entries, its source has none")
+    same_frames = (view.history_len, view.frame_size, view.onset) == (
+        source.history_len, source.frame_size, source.onset)
     if same_frames and size in (None, blind.shape[-1]):
         return blind
     lead = blind.shape[:-1]
     frames = blind[..., : source.history_size].reshape(*lead, source.history_len,
                                                         source.frame_size)
     kept = frames[..., : view.history_len, : view.frame_size].reshape(*lead, view.history_size)
-    rest = blind[..., source.history_size:]
+    onset = blind[..., source.history_size: source.history_size + view.onset_size]
+    rest = blind[..., source.history_size + source.onset_size:]
+    head = view.history_size + view.onset_size
     if size is not None:
-        rest = rest[..., : size - view.history_size]
-    return np.concatenate([kept, rest], axis=-1)
+        rest = rest[..., : size - head]
+    return np.concatenate([kept, onset, rest], axis=-1)
 
 
 def rollout_layout(student: ObservationLayout, teacher: ObservationLayout,
                    blind_teacher: bool) -> ObservationLayout:
     """The frame layout the DAgger rollouts run: the student's, or with a blind teacher the
-    union of both (the longer history; tactile entries if either reads them), from which each
+    union of both (the longer history; tactile and grasp-onset entries if either reads them),
+    from which each
     policy reads its own view (:func:`blind_view`)."""
     if not blind_teacher:
         return student
     frames = student if student.tactile or not teacher.tactile else teacher
     return view_layout({"obs_mode": frames.obs_mode,
-                        "history_len": max(student.history_len, teacher.history_len)})
+                        "history_len": max(student.history_len, teacher.history_len),
+                        "onset_obs": student.onset or teacher.onset})
 
 
 def validate(model: Any, venv: Any, targets: Sequence[str], eval_seed: int,
@@ -480,7 +491,8 @@ def dagger(model: Any, teacher: ModelPolicy, env_id: str, kwargs: dict[str, Any]
     s_size = int(model.observation_space.shape[0])
     r_kwargs = {**kwargs, "privileged_obs": True}
     if blind_teacher:
-        r_kwargs.update(obs_mode=r_layout.obs_mode, history_len=r_layout.history_len)
+        r_kwargs.update(obs_mode=r_layout.obs_mode, history_len=r_layout.history_len,
+                        onset_obs=r_layout.onset)
     venv = make_sb3_vec_env(env_id, n_envs, seed, r_kwargs, "native", env_wrapper=wrapper)
     policy = model.policy
     params = [*policy.mlp_extractor.policy_net.parameters(), *policy.action_net.parameters()]

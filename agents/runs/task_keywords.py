@@ -35,7 +35,8 @@ from agents.common.env_factory import short_repr
 
 #: The agent's keywords (kept from a model's config).
 AGENT_KEYS = ("control_dt", "action_mode", "normalize_action", "max_delta_deg",
-              "joint_range_deg", "obs_mode", "history_len", "goal_obs", "privileged_obs")
+              "joint_range_deg", "obs_mode", "history_len", "onset_obs", "goal_obs",
+              "privileged_obs")
 #: Reward shaping of training (replaced by the registered id's at evaluation).
 REWARD_KEYS = ("x_scale_mm", "theta_scale_deg", "goal_weight", "success_weight",
                "ctrl_weight", "failure_weight")

@@ -188,7 +188,8 @@ def build_config(options: EnvOptions) -> EnvConfig:
         actions=ActionMap(o.action_mode, bool(o.normalize_action), float(o.max_delta_deg),
                           joint_range),
         layout=ObservationLayout(
-            o.obs_mode, o.history_len, tuple(t.name for t in task_obj.targets)
+            o.obs_mode, o.history_len, tuple(t.name for t in task_obj.targets),
+            onset=bool(o.onset_obs),
         ),
         n_substeps=n_substeps,
         dt=n_substeps * params.dt,

@@ -17,9 +17,12 @@ Layout of one frame (float32, in this order, each divided by its scale)::
     8, 9   d_n1/2      normal fingertip deformation [tactile] m       DN_SCALE (10 mm)
     10, 11 d_t1/2      tangential deformation [tactile]       m       DT_SCALE (1 mm)
 
-The observation is ``history_len`` frames, newest first, followed by the goal of goal tasks
-(x target / POSITION_SCALE (30 mm), theta target / ANGLE_SCALE). Every entry is clipped to
-[-OBS_BOUND, OBS_BOUND] = [-100, 100], the bounds of the observation space.
+The observation is ``history_len`` frames, newest first, then (``onset_obs=True``) the two
+joint angles read at the start of the grasp phase, where the fingertips touch the object
+undeformed (``onset_theta_1/2``, / ANGLE_SCALE, read once per episode through the sensor
+model), then the goal of goal tasks (x target / POSITION_SCALE (30 mm), theta target /
+ANGLE_SCALE). Every entry is clipped to [-OBS_BOUND, OBS_BOUND] = [-100, 100], the bounds of
+the observation space.
 """
 
 from __future__ import annotations
@@ -64,6 +67,8 @@ PROPRIO_NAMES = (
     "torque_2",
 )
 TACTILE_NAMES = ("d_n1", "d_n2", "d_t1", "d_t2")
+#: Names of the grasp-onset entries (``onset_obs``), after the frames.
+ONSET_NAMES = ("onset_theta_1", "onset_theta_2")
 OBS_MODES = KEYWORDS["obs_mode"].choices
 
 
@@ -118,9 +123,13 @@ class ObservationLayout:
         Number of frames (>= 1), newest first.
     goal_names : tuple of str
         Names of the goal entries appended at the end.
+    onset : bool
+        The two grasp-onset angles follow the frames (``onset_obs``; columns
+        ``history_size .. history_size + onset_size``).
     """
 
-    def __init__(self, obs_mode: str, history_len: int, goal_names: tuple[str, ...]):
+    def __init__(self, obs_mode: str, history_len: int, goal_names: tuple[str, ...],
+                 onset: bool = False):
         check_keyword("obs_mode", obs_mode)
         check_keyword("history_len", history_len)
         #: The ``obs_mode`` keyword the layout was built from.
@@ -130,10 +139,13 @@ class ObservationLayout:
         frame = PROPRIO_NAMES + (TACTILE_NAMES if self.tactile else ())
         self.frame_size = len(frame)
         self.history_size = self.frame_size * self.history_len
+        self.onset = bool(onset)
+        self.onset_size = len(ONSET_NAMES) if self.onset else 0
         self.goal_size = len(goal_names)
-        self.size = self.history_size + self.goal_size
+        self.size = self.history_size + self.onset_size + self.goal_size
         names = [n if k == 0 else f"{n}[t-{k}]" for k in range(self.history_len) for n in frame]
-        self.names = tuple(names) + tuple(f"goal_{g}" for g in goal_names)
+        self.names = (tuple(names) + (ONSET_NAMES if self.onset else ())
+                      + tuple(f"goal_{g}" for g in goal_names))
 
     def space(self) -> spaces.Box:
         """float32 Box [-OBS_BOUND, OBS_BOUND]^size."""

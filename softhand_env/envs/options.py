@@ -220,6 +220,9 @@ class EnvOptions:
     history_len: int = _kw(1, "number of observation frames, newest first", "int",
                            low=1, high=100,
                            message="{name} must be in {range} (got {value!r})")
+    onset_obs: bool = _kw(False, "append the joint encoders' reading at the start of the "
+                          "grasp phase (fingertips touching the object, undeformed): 2 "
+                          "entries after the frames", "flag")
     grasp_setpoint_deg: tuple[float, float] = _kw(
         (6.0, 6.0), "grasp set-points, first set-points; within ``joint_range_deg``", "pair",
         "deg", low=-90.0, high=90.0, low_open=True, high_open=True)

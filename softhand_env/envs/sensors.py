@@ -27,7 +27,8 @@ The keyword ``sensor_model`` chooses how the observation reads the hand:
 Every draw comes from the environment's ``np_random``, so a seeded episode is reproducible and
 environment i of the native vector env draws what a single environment with its seed draws.
 Per episode, after everything :func:`~softhand_env.envs.start.start_episode` draws: the two
-torque offsets, then (``rand_sensors=True``) the two gains. Per reading (each reset and each
+torque offsets, then (``rand_sensors=True``) the two gains, then (``onset_obs=True``) the two
+encoder noises of the grasp-onset reading. Per reading (each reset and each
 step): two encoder noises, two torque noises, then four tactile noises (tactile mode). The
 observation's ``obs_noise`` (scaled units) is added after the sensor model, drawn after it.
 The sensed values go through the observation's scaling (:mod:`.observation`), so the
@@ -200,6 +201,15 @@ class SensorState:
         if self.rand_gain:
             t = self.spec.torque_gain_tolerance
             self.torque_gain[i] = 1.0 + t * rng.uniform(-1.0, 1.0, size=2)
+
+    def onset(self, angle: np.ndarray, rngs: Sequence[np.random.Generator]) -> np.ndarray:
+        """Encoder readings (K, 2) (rad) of the joint angles ``angle`` (K, 2) (rad) of K
+        environments, row k with two N(0, s^2) noises drawn from ``rngs[k]`` and rounded to
+        the resolution, as every encoder reading (the grasp-onset entries, ``onset_obs``)."""
+        angle = np.asarray(angle, dtype=np.float64)
+        z = standard_normal_rows(rngs, 2) if len(rngs) else np.zeros((0, 2))
+        q = self.resolution
+        return q * np.rint((angle + self.encoder_noise * z) / q)
 
     def read(
         self,

@@ -34,6 +34,8 @@ field                  meaning
                        model trained on exact read-outs is refused on quantised, noisy ones
                        and the other way round; a signature saved before the field existed
                        reads ``ideal`` (:data:`LEGACY_VALUES`)
+``onset_obs``          the grasp-onset entries follow the frames (a signature saved before
+                       the field existed reads ``False``)
 =====================  ====================================================================
 
 The ``-v0`` and ``-v1`` ids are distinct ids (``env_id``), so a model trained on a ``-v0`` id
@@ -82,11 +84,12 @@ SIGNATURE_FIELDS = (
     "joint_range_deg",
     "control_dt",
     "sensor_model",
+    "onset_obs",
 )
 
 #: Values of fields added after signatures were first saved, as a signature without the field
 #: means them (the model was trained when only that value existed).
-LEGACY_VALUES: dict[str, Any] = {"sensor_model": "ideal"}
+LEGACY_VALUES: dict[str, Any] = {"sensor_model": "ideal", "onset_obs": False}
 
 #: Relative tolerance for float fields (they round-trip through degrees/radians and JSON).
 FLOAT_RTOL = 1e-9
@@ -162,6 +165,7 @@ def env_signature(env: Any) -> dict[str, Any]:
         "joint_range_deg": [math.degrees(actions.low), math.degrees(actions.high)],
         "control_dt": cfg.dt,
         "sensor_model": cfg.sensors.name,
+        "onset_obs": cfg.layout.onset,
     }
 
 

@@ -102,7 +102,7 @@ class SoftHandEnv(gym.Env):
 
     ``Box(-100, 100, (n,), float32)`` (entries clipped to the bounds, reached only by torque
     spikes above 1000 N m or a diverging state); ``history_len`` frames (newest first), then
-    the goal:
+    (``onset_obs=True``) the grasp-onset angles, then the goal:
 
     | index   | name                 | quantity                          | unit  | divided by |
     |---------|----------------------|-----------------------------------|-------|------------|
@@ -112,9 +112,17 @@ class SoftHandEnv(gym.Env):
     | 6, 7    | torque_1, torque_2   | PID torques (Eq 5.42)             | N m   | 10         |
     | 8, 9    | d_n1, d_n2           | normal deformations (tactile)     | m     | 10 mm      |
     | 10, 11  | d_t1, d_t2           | tangential deformations (tactile) | m     | 1 mm       |
+    | frames  | onset_theta_1, _2    | joint angles at the grasp's start | rad   | 30 deg     |
     | end     | goal_x, goal_theta   | target x / theta (goal tasks)     | m/rad | 30 mm/30 deg|
 
     Entries 8-11 exist only with ``obs_mode="proprio_tactile"`` (frame size 12, else 8). The
+    two grasp-onset entries (after the frames, ``onset_obs=True``) are the joint angles of the
+    grasp phase's first state, where the fingertips touch the object undeformed (the paper's
+    point-contact start, 0 for its object width), read once per episode through the encoder
+    model and constant for the episode: what a hand that closed on the object itself knows of
+    where contact began. They tell the object's width, and with the present angles how far
+    the fingertips are compressed, which joint angles and torques alone leave open on the
+    ``Random`` ids (randomised width and stiffness). The
     frame is a function of the finger part of the state, the set-points and the PID gains
     only (:func:`softhand_env.envs.observation.observe_rows`), read through the sensor model
     ``sensor_model`` (:mod:`softhand_env.envs.sensors`, values in
@@ -316,6 +324,7 @@ class SoftHandEnv(gym.Env):
         control_dt: float = 0.02,
         obs_mode: str = "proprio",
         history_len: int = 1,
+        onset_obs: bool = False,
         grasp_setpoint_deg: tuple[float, float] = (6.0, 6.0),
         grasp_duration: float = 0.5,
         reset_noise_deg: float = 0.0,

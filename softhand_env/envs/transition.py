@@ -36,6 +36,7 @@ from softhand_env.envs.fused import (
     write_starts,
 )
 from softhand_env.envs.observation import (
+    ANGLE_SCALE,
     OBS_BOUND,
     add_frame_noise,
     add_frame_noise_rows,
@@ -52,7 +53,7 @@ from softhand_env.physics.hand import (
     HandReadouts,
     StepStatus,
 )
-from softhand_env.physics.model import DN_1, DT_1, X_OBJ
+from softhand_env.physics.model import DN_1, DT_1, X_OBJ, initial_finger_angle
 
 #: Action dtypes the compiled one-episode step takes (others go through the batched pieces).
 _FUSED_DTYPES = (np.dtype(np.float32), np.dtype(np.float64))
@@ -282,6 +283,23 @@ class EpisodeBatch:
         if self.sensing is not None:  # after every draw of start_episode
             for i, rng in zip(rows.tolist(), generators, strict=True):
                 self.sensing.start(i, rng)
+        if self.cfg.layout.onset:
+            self._write_onset(rows, starts.params, generators)
+
+    def _write_onset(self, rows: np.ndarray, params: Sequence[Any],
+                     generators: Sequence[np.random.Generator]) -> None:
+        """The grasp-onset entries of the environments ``rows`` (int (K,)) whose episodes
+        start with hands ``params`` (K HandParams): the finger angles of the grasp phase's
+        first state, the fingertips touching the object undeformed
+        (:func:`~softhand_env.physics.model.initial_finger_angle`), read through the sensor
+        model (two encoder noises from each environment's generator after its calibration;
+        exact with ideal sensors), scaled and clipped like the frames' angles. They stay for
+        the episode (no step writes those columns)."""
+        angle = np.array([[initial_finger_angle(p)] * 2 for p in params])
+        if self.sensing is not None:
+            angle = self.sensing.onset(angle, generators)
+        h = self.cfg.layout.history_size
+        self.obs[rows, h:h + 2] = np.clip(angle / ANGLE_SCALE, -OBS_BOUND, OBS_BOUND)
 
     def finish_reset(
         self, mask: np.ndarray, rngs: Sequence[np.random.Generator | None]

@@ -1,4 +1,5 @@
-"""How blind is an environment? Regress the object's pose from the agent's observation frames.
+"""How blind is an environment? Regress the object's pose (or the fingertips' compression) from
+the agent's observation frames.
 
 ::
 
@@ -42,6 +43,14 @@ the frames):
   mode (delta by default: a random walk of the set-points by up to ``max_delta_deg`` per step,
   which ends most episodes early by over-compression or a lost grasp).
 
+``--target compression`` regresses the fingertips' normal deformations d_n1, d_n2 (from
+``info["deformation"]``) instead of the pose: the quantity the over-compression check judges
+(d_n >= ``overcompression_ratio`` a ends an episode). Its table gives the RMSE (mm, both
+fingers) on all held-out frames and on those compressed beyond 8.5 mm, the mean error there
+(mm; negative: the fit reads a deep compression as shallower) and the fraction of frames with
+both fingers within 0.5 mm. With ``--env-kwargs onset_obs:true`` each frame carries the two
+grasp-onset entries too (the joint angles where the grasp began, constant in an episode).
+
 The regression is seeded and deterministic (one torch thread). ``--shuffle-labels`` permutes
 the training poses across frames: the fit then cannot learn anything, which is the sanity
 check that the table measures information in the frames.
@@ -66,6 +75,13 @@ THETA_TOL = math.radians(1.0)
 #: Strict precision tolerances (strict success of the evaluations): x (m) and theta (rad).
 X_TOL_STRICT = 0.5e-3
 THETA_TOL_STRICT = math.radians(0.5)
+#: Regression targets (``--target``).
+TARGETS = ("pose", "compression")
+#: Compressions (m) beyond which the compression table reports the error separately (the
+#: over-compression limit is 10 mm at the nominal fingertip radius).
+DEEP_DN = 8.5e-3
+#: Compression tolerance (m) of the compression table's "within" column.
+DN_TOL = 0.5e-3
 #: Set-point walk: seconds between targets, largest rate (rad/s), ranges (rad).
 WALK_HOLD_S = 0.2
 WALK_RATE = math.radians(25.0)
@@ -113,10 +129,12 @@ class Episodes:
     Attributes
     ----------
     frames : list of ndarray, shape (T_k + 1, frame_size)
-        Observation frames (scaled units, float64) at the reset and after every step.
+        Observation frames (scaled units, float64) at the reset and after every step, each
+        followed by the grasp-onset entries when the env has them (``onset_obs``).
     poses : list of ndarray, shape (T_k + 1, 3)
         True object pose (x, y, theta; m, m, rad) of the same instants.
     frame_size : int
+        Entries of one recorded frame (the onset entries included).
     sensing : dict
         The sensing of the frames, as the env was built: ``sensor_model``, ``obs_mode``,
         ``obs_noise`` (scaled units) and ``rand_sensors`` (per-episode torque-sensor gains).
@@ -126,6 +144,8 @@ class Episodes:
     poses: list[np.ndarray]
     frame_size: int
     sensing: dict[str, Any] = field(default_factory=dict)
+    #: True normal deformations d_n1, d_n2 (m) of the same instants, (T_k + 1, 2) each.
+    compressions: list[np.ndarray] = field(default_factory=list)
 
 
 def collect(env_id: str, env_kwargs: dict[str, Any] | None = None, episodes: int = 40,
@@ -146,29 +166,35 @@ def collect(env_id: str, env_kwargs: dict[str, Any] | None = None, episodes: int
     if policy == "scripted":
         kw.update(action_mode="absolute", normalize_action=False)
     env = gym.make(env_id, **kw)
-    f = env.unwrapped.config.layout.frame_size  # type: ignore[attr-defined]
+    layout = env.unwrapped.config.layout  # type: ignore[attr-defined]
+    # the newest frame, then the grasp-onset entries (if any) that follow the frames
+    cols = np.r_[0:layout.frame_size,
+                 layout.history_size:layout.history_size + layout.onset_size]
     sensing = sensing_of(env.unwrapped)
     dt = float(env.unwrapped.dt)  # type: ignore[attr-defined]
-    frames, poses = [], []
+    frames, poses, compressions = [], [], []
     for k in range(episodes):
         obs, info = env.reset(seed=seed + k)
         rng = np.random.default_rng([seed, k])
         env.action_space.seed(int(rng.integers(2**31)))
         walk = SetpointWalk(info["setpoint"], dt, rng)
-        fr, po = [np.asarray(obs[:f], dtype=np.float64)], [np.asarray(info["object_pose"])]
+        fr, po = [np.asarray(obs[cols], dtype=np.float64)], [np.asarray(info["object_pose"])]
+        dn = [np.asarray(info["deformation"][:2])]
         t = 0
         while max_steps is None or t < max_steps:
             action = walk() if policy == "scripted" else env.action_space.sample()
             obs, _, terminated, truncated, info = env.step(action)
             t += 1
-            fr.append(np.asarray(obs[:f], dtype=np.float64))
+            fr.append(np.asarray(obs[cols], dtype=np.float64))
             po.append(np.asarray(info["object_pose"]))
+            dn.append(np.asarray(info["deformation"][:2]))
             if terminated or truncated:
                 break
         frames.append(np.array(fr))
         poses.append(np.array(po))
+        compressions.append(np.array(dn))
     env.close()
-    return Episodes(frames, poses, f, sensing)
+    return Episodes(frames, poses, len(cols), sensing, compressions)
 
 
 def sensing_of(env: Any) -> dict[str, Any]:
@@ -303,41 +329,101 @@ def score(label: str, pred: np.ndarray, true: np.ndarray) -> Row:
                float(strict.mean()), len(true))
 
 
+@dataclass(frozen=True)
+class CompressionRow:
+    """Held-out accuracy of one regressor of the compressions d_n1, d_n2 (``--target
+    compression``).
+
+    Attributes
+    ----------
+    label : str
+    rmse_mm : float
+        RMSE over both fingers and every held-out frame (mm).
+    rmse_deep_mm, bias_deep_mm : float
+        RMSE and mean error (mm) over the fingers compressed beyond :data:`DEEP_DN` (NaN if
+        none).
+    within : float
+        Fraction of held-out frames with both fingers within :data:`DN_TOL`.
+    n_frames, n_deep : int
+        Held-out frames, and finger readings beyond :data:`DEEP_DN`.
+    """
+
+    label: str
+    rmse_mm: float
+    rmse_deep_mm: float
+    bias_deep_mm: float
+    within: float
+    n_frames: int
+    n_deep: int
+
+
+def score_compression(label: str, pred: np.ndarray, true: np.ndarray) -> CompressionRow:
+    """:class:`CompressionRow` of predicted vs true compressions (n, 2) (m)."""
+    err = pred - true
+    deep = true > DEEP_DN
+    rmse_deep = 1e3 * math.sqrt(np.mean(err[deep] ** 2)) if deep.any() else math.nan
+    bias_deep = 1e3 * float(np.mean(err[deep])) if deep.any() else math.nan
+    return CompressionRow(label, 1e3 * math.sqrt(np.mean(err**2)), rmse_deep, bias_deep,
+                          float(np.all(np.abs(err) < DN_TOL, axis=1).mean()), len(true),
+                          int(deep.sum()))
+
+
 def observability(data: Episodes, frames: Sequence[int] = (1, 4), held_out: float = 0.25,
                   seed: int = 0, hidden: Sequence[int] = (128, 128), epochs: int = 150,
-                  shuffle_labels: bool = False) -> list[Row]:
+                  shuffle_labels: bool = False, target: str = "pose"
+                  ) -> list[Row] | list[CompressionRow]:
     """Rows of the table: the training-mean baseline, then one MLP per entry of ``frames``
-    (stacked frames), trained on the training episodes, scored on the held-out ones."""
+    (stacked frames), trained on the training episodes, scored on the held-out ones; ``target``
+    ``"pose"`` (:class:`Row`) or ``"compression"`` (:class:`CompressionRow`)."""
+    if target not in TARGETS:
+        raise ValueError(f"target must be one of {TARGETS} (got {target!r})")
     train, test = split_episodes(len(data.frames), held_out, seed)
+    labels = data.poses if target == "pose" else data.compressions
+    scorer: Any = score if target == "pose" else score_compression
 
     def design(k: int, eps: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         X = np.vstack([stack_frames(data.frames[e], k) for e in eps])
-        Y = np.vstack([data.poses[e] for e in eps])
+        Y = np.vstack([labels[e] for e in eps])
         return X, Y
 
     _, y_test = design(1, test)
     _, y_train = design(1, train)
-    rows = [score("mean", np.broadcast_to(y_train.mean(0), y_test.shape), y_test)]
+    rows = [scorer("mean", np.broadcast_to(y_train.mean(0), y_test.shape), y_test)]
     for k in frames:
         X, Y = design(int(k), train)
         if shuffle_labels:
             Y = Y[np.random.default_rng(seed).permutation(len(Y))]
         predict = fit_mlp(X, Y, hidden, epochs, seed=seed)
         Xt, Yt = design(int(k), test)
-        rows.append(score(f"{k} frame{'s' if k > 1 else ''}", predict(Xt), Yt))
+        rows.append(scorer(f"{k} frame{'s' if k > 1 else ''}", predict(Xt), Yt))
     return rows
 
 
-def format_table(title: str, rows: Sequence[Row]) -> str:
+def format_table(title: str, rows: Sequence[Row] | Sequence[CompressionRow]) -> str:
     """Markdown table of :func:`observability`'s rows under a ``title`` line."""
+    if any(isinstance(r, CompressionRow) for r in rows):
+        return _format_compression(title, [r for r in rows if isinstance(r, CompressionRow)])
     lines = [title, "",
              "| input | RMSE x (mm) | RMSE y (mm) | RMSE theta (deg) | within 1 mm and 1 deg "
              "| within 0.5 mm and 0.5 deg |",
              "|---|---|---|---|---|---|"]
     for r in rows:
+        assert isinstance(r, Row)
         lines.append(f"| {r.label} | {r.rmse_x_mm:.3f} | {r.rmse_y_mm:.3f} | "
                      f"{r.rmse_theta_deg:.3f} | {100 * r.within:.1f} % | "
                      f"{100 * r.within_strict:.1f} % |")
+    return "\n".join(lines)
+
+
+def _format_compression(title: str, rows: Sequence[CompressionRow]) -> str:
+    deep = f"beyond {1e3 * DEEP_DN:g} mm"
+    lines = [title, "",
+             f"| input | RMSE d_n (mm) | RMSE {deep} (mm) | mean error {deep} (mm) | "
+             f"both within {1e3 * DN_TOL:g} mm |",
+             "|---|---|---|---|---|"]
+    for r in rows:
+        lines.append(f"| {r.label} | {r.rmse_mm:.3f} | {r.rmse_deep_mm:.3f} | "
+                     f"{r.bias_deep_mm:+.3f} | {100 * r.within:.1f} % |")
     return "\n".join(lines)
 
 
@@ -386,7 +472,10 @@ def main(argv: Sequence[str] | None = None) -> int:
     ap.add_argument("--epochs", type=int, default=150, help="training epochs (default 150)")
     ap.add_argument("--seed", type=int, default=0, help="episode k: reset(seed=SEED + k)")
     ap.add_argument("--shuffle-labels", action="store_true",
-                    help="permute the training poses (sanity check: no information)")
+                    help="permute the training labels (sanity check: no information)")
+    ap.add_argument("--target", choices=TARGETS, default="pose",
+                    help="what is regressed: the object's pose (default) or the fingertips' "
+                         "normal deformations d_n1, d_n2")
     args = ap.parse_args(argv)
     if args.episodes < 2 or not 0 < args.held_out < 1 or args.epochs < 1:
         ap.error("--episodes must be >= 2, --held-out in (0, 1), --epochs >= 1")
@@ -403,12 +492,13 @@ def main(argv: Sequence[str] | None = None) -> int:
     except (TypeError, ValueError, gym_error()) as exc:
         raise CliError(f"cannot roll out {args.env} {kwargs}: {one_line(exc)}") from None
     rows = observability(data, args.frames, args.held_out, args.seed, args.hidden, args.epochs,
-                         args.shuffle_labels)
+                         args.shuffle_labels, args.target)
     n = sum(len(p) for p in data.poses)
     shown = " ".join(f"{k}:{v}" for k, v in kwargs.items()) or "the id's keywords"
     title = (f"{args.env} ({shown}; {sensing_text(data.sensing)}), {args.policy} policy, "
              f"{args.episodes} episodes "
              f"({n} frames), {rows[0].n_frames} held-out frames"
+             + (", target d_n1, d_n2" if args.target == "compression" else "")
              + (", training labels shuffled" if args.shuffle_labels else ""))
     print(format_table(title, rows))
     return 0

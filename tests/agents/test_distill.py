@@ -244,6 +244,39 @@ def test_blind_teacher_and_student_each_read_their_view_of_the_union_observation
     assert list(np.load(run / "dagger_curve.npz")["iteration"]) == [0, 1, 2]
 
 
+def test_views_keep_or_drop_the_grasp_onset_entries():
+    # a joint-only student with the grasp-onset entries, a tactile teacher without them, on
+    # randomised object widths (the onset differs per episode); ideal sensors draw nothing
+    # for the onset, so each view equals that policy's own env's observation
+    base = {**KWARGS, "rand_width": 0.2}
+    student = {**base, "history_len": 3, "onset_obs": True}
+    tactile = {**base, "obs_mode": "proprio_tactile", "history_len": 2}
+    union = distill.rollout_layout(distill.view_layout(student), distill.view_layout(tactile),
+                                   True)
+    assert (union.tactile, union.history_len, union.onset) == (True, 3, True)
+    kws = ({**base, "obs_mode": "proprio_tactile", "history_len": 3, "onset_obs": True},
+           tactile, student)
+    envs = [make_sb3_vec_env(ENV_ID, 2, 5, kw, "native", env_wrapper=WRAPPER) for kw in kws]
+    obs = [env.reset() for env in envs]
+    h = union.history_size
+    assert np.all(obs[0][:, h:h + 2] != 0)  # a randomised width: the fingers start inclined
+    for _ in range(3):
+        for k in (1, 2):
+            view = distill.blind_view(obs[0], distill.view_layout(kws[k]), union,
+                                      obs[k].shape[-1])
+            np.testing.assert_array_equal(view, obs[k])
+        obs = [env.step(np.full((2, 2), 0.25, np.float32))[0] for env in envs]
+    with pytest.raises(ValueError, match="grasp-onset"):
+        distill.blind_view(obs[1], distill.view_layout(student), distill.view_layout(tactile))
+    # a privileged teacher that reads the onset needs a student that reads it too
+    teacher = SimpleNamespace(env_id=ENV_ID, env_wrapper=WRAPPER, env_kwargs={
+        **KWARGS, "privileged_obs": True, "onset_obs": True})
+    entry = {"env_kwargs": dict(KWARGS), "env_wrapper": WRAPPER}
+    with pytest.raises(UserError, match="grasp-onset"):
+        distill.check_pair(teacher, ENV_ID, entry)
+    distill.check_pair(teacher, ENV_ID, {**entry, "env_kwargs": {**KWARGS, "onset_obs": True}})
+
+
 def test_step_size_goes_linearly_from_lr_to_lr_final():
     steps = [distill.lr_at(k, 5, 1e-3, 1e-4) for k in range(5)]
     np.testing.assert_allclose(steps, [1e-3, 7.75e-4, 5.5e-4, 3.25e-4, 1e-4])

@@ -117,6 +117,8 @@ def test_cli_errors():
         ob.main(["--env", "SoftHandPose-v1", "--sensor-model", "exact"])
     with pytest.raises(CliError, match="invalid choice: 'vision'"):
         ob.main(["--env", "SoftHandPose-v1", "--obs-mode", "vision"])
+    with pytest.raises(CliError, match="invalid choice: 'velocity'"):
+        ob.main(["--env", "SoftHandPose-v1", "--target", "velocity"])
     with pytest.raises(CliError, match="sensor_model is given twice"):
         ob.main(["--env", "SoftHandPose-v1", "--sensor-model", "ideal",
                  "--env-kwargs", "sensor_model:realistic"])
@@ -166,3 +168,45 @@ def test_cli_sensing_in_the_title(capsys):
     out = capsys.readouterr().out
     assert ("SoftHandPoseRandom-v1 (obs_mode:proprio_tactile; sensor_model realistic, "
             "obs_mode proprio_tactile, obs_noise 0.01, rand_sensors)") in out
+
+
+def test_score_compression_counts_the_deep_readings_and_both_fingers():
+    true = np.array([[9.0, 4.0], [5.0, 5.0], [9.5, 9.2]]) * 1e-3
+    err = np.array([[-0.6, 0.1], [0.2, -0.3], [-0.2, 0.4]]) * 1e-3
+    row = ob.score_compression("r", true + err, true)
+    assert row.rmse_mm == pytest.approx(1e3 * math.sqrt(np.mean(err**2)))
+    deep = err[true > 8.5e-3]  # -0.6, -0.2, 0.4 mm
+    assert row.n_deep == 3 and row.bias_deep_mm == pytest.approx(1e3 * deep.mean())
+    assert row.rmse_deep_mm == pytest.approx(1e3 * math.sqrt(np.mean(deep**2)))
+    assert row.within == pytest.approx(2 / 3)  # the first frame's -0.6 mm is outside
+    shallow = ob.score_compression("r", true * 0.5, true * 0.5)
+    assert math.isnan(shallow.rmse_deep_mm) and shallow.n_deep == 0
+
+
+def test_compression_target_reads_the_onset_entries_when_the_env_has_them():
+    # a randomised object width: where contact began differs per episode
+    kwargs = {"rand_width": 0.2}
+    plain = ob.collect("SoftHandPose-v0", kwargs, 6, "scripted", seed=0, max_steps=30)
+    onset = ob.collect("SoftHandPose-v0", {**kwargs, "onset_obs": True}, 6, "scripted",
+                       seed=0, max_steps=30)
+    assert (plain.frame_size, onset.frame_size) == (8, 10)
+    for fr, fo, dn in zip(plain.frames, onset.frames, onset.compressions, strict=True):
+        np.testing.assert_array_equal(fo[:, :8], fr)  # ideal sensors: the same frames
+        assert np.all(fo[:, 8:] == fo[0, 8:]) and np.all(fo[0, 8:] != 0)  # one onset each
+        assert dn.shape == (len(fr), 2) and np.all(dn > 0)  # grasped: both compressed
+    rows = ob.observability(onset, seed=0, target="compression", **FIT)
+    assert [r.label for r in rows] == ["mean", "1 frame", "2 frames"]
+    assert all(isinstance(r, ob.CompressionRow) for r in rows)
+    table = ob.format_table("t", rows)
+    assert "RMSE d_n (mm)" in table and len(table.splitlines()) == 4 + len(rows)
+    with pytest.raises(ValueError, match="target"):
+        ob.observability(onset, target="velocity")
+
+
+def test_cli_compression_table(capsys):
+    assert ob.main(["--env", "SoftHandPoseRandom-v1", "--target", "compression",
+                    "--env-kwargs", "onset_obs:true", "--episodes", "4", "--max-steps", "10",
+                    "--epochs", "5", "--frames", "1"]) == 0
+    out = capsys.readouterr().out
+    assert "onset_obs:True" in out and "target d_n1, d_n2" in out
+    assert "| 1 frame |" in out and "both within 0.5 mm" in out
