@@ -48,6 +48,8 @@ SHIPPED = {
     # test goals), two goals of margin; the earlier fine-tuned one: 9/10 (89.3 %)
     "SoftHandPoseRandom-v1_proprio": 0.6,
     "SoftHandPoseRandom-v1_proprio_finetuned": 0.7,
+    # the same with the grasp onset (onset_obs): 10/10 here (97.3 % on 300 test goals)
+    "SoftHandPoseRandom-v1_proprio_onset": 0.8,
 }
 
 
