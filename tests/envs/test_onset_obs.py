@@ -96,3 +96,22 @@ def test_vector_env_rows_equal_single_envs_with_onset(env_id):
     assert ends >= n  # every env restarted at least once (its onset read again)
     native.close()
     single.close()
+
+
+@pytest.mark.parametrize("num_envs", [None, 2])
+def test_goal_dict_observation_keeps_the_onset_entries(num_envs):
+    kwargs = {"onset_obs": True, "history_len": 2}
+    if num_envs is None:
+        box, d = (gym.make("SoftHandPoseRandom-v1", goal_obs=goal, **kwargs)
+                  for goal in (False, True))
+    else:
+        box, d = (gym.make_vec("SoftHandPoseRandom-v1", num_envs=num_envs,
+                               vectorization_mode="vector_entry_point", goal_obs=goal, **kwargs)
+                  for goal in (False, True))
+    o_box, _ = box.reset(seed=4)
+    o_dict, _ = d.reset(seed=4)
+    size = box.unwrapped.single_observation_space.shape[0] if num_envs else (
+        box.observation_space.shape[0])
+    # everything before the goal: the frames and the two onset entries
+    assert o_dict["observation"].shape[-1] == size - 2
+    np.testing.assert_array_equal(o_dict["observation"], o_box[..., : size - 2])
