@@ -271,10 +271,9 @@ def blind_view(blind: np.ndarray, view: ObservationLayout, source: ObservationLa
                                                         source.frame_size)
     kept = frames[..., : view.history_len, : view.frame_size].reshape(*lead, view.history_size)
     onset = blind[..., source.history_size: source.history_size + view.onset_size]
-    rest = blind[..., source.history_size + source.onset_size:]
-    head = view.history_size + view.onset_size
+    rest = blind[..., source.blind_size:]
     if size is not None:
-        rest = rest[..., : size - head]
+        rest = rest[..., : size - view.blind_size]
     return np.concatenate([kept, onset, rest], axis=-1)
 
 

@@ -2,7 +2,7 @@
 
 ``gym.make(id, goal_obs=True)`` (goal tasks) returns the env under :class:`GoalObservation`::
 
-    observation    float32 (size - goal_dim,) the blind frames of today's observation (joints,
+    observation    float32 (blind_size,)    the blind frames of today's observation (joints,
                                             set-points, PID torques [, tactile]) and the
                                             grasp-onset entries (``onset_obs``); the goal
                                             entries move to desired_goal
@@ -122,8 +122,8 @@ class DictReadout:
         bound = OBS_BOUND
         if self.goal_obs:
             g = self.task.goal_dim
-            blind = self.layout.size - self.layout.goal_size
-            out["observation"] = spaces.Box(-bound, bound, (blind,), np.float32)
+            out["observation"] = spaces.Box(-bound, bound, (self.layout.blind_size,),
+                                            np.float32)
             out["desired_goal"] = spaces.Box(-bound, bound, (g,), np.float64)
             out["achieved_goal"] = spaces.Box(-bound, bound, (g,), np.float64)
         else:
@@ -179,8 +179,7 @@ class DictReadout:
         out: dict[str, np.ndarray] = {}
         goal = physics["goal"]
         if self.goal_obs:
-            blind = self.layout.size - self.layout.goal_size
-            out["observation"] = np.asarray(obs)[..., :blind].copy()
+            out["observation"] = np.asarray(obs)[..., : self.layout.blind_size].copy()
             out["desired_goal"] = self.goal_units(goal)
             out["achieved_goal"] = self.achieved(physics["object_pose"])
         else:

@@ -141,8 +141,10 @@ class ObservationLayout:
         self.history_size = self.frame_size * self.history_len
         self.onset = bool(onset)
         self.onset_size = len(ONSET_NAMES) if self.onset else 0
+        #: Entries before the goal: the frames, then the onset entries.
+        self.blind_size = self.history_size + self.onset_size
         self.goal_size = len(goal_names)
-        self.size = self.history_size + self.onset_size + self.goal_size
+        self.size = self.blind_size + self.goal_size
         names = [n if k == 0 else f"{n}[t-{k}]" for k in range(self.history_len) for n in frame]
         self.names = (tuple(names) + (ONSET_NAMES if self.onset else ())
                       + tuple(f"goal_{g}" for g in goal_names))

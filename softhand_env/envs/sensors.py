@@ -208,8 +208,7 @@ class SensorState:
         the resolution, as every encoder reading (the grasp-onset entries, ``onset_obs``)."""
         angle = np.asarray(angle, dtype=np.float64)
         z = standard_normal_rows(rngs, 2) if len(rngs) else np.zeros((0, 2))
-        q = self.resolution
-        return q * np.rint((angle + self.encoder_noise * z) / q)
+        return _encoder_reading(angle, z, self.resolution, self.encoder_noise)
 
     def read(
         self,
@@ -259,6 +258,14 @@ class SensorState:
 
 
 @njit(cache=True)
+def _encoder_reading(theta, z, q, encoder_noise):
+    """Encoder reading(s) of the joint angle(s) theta (rad; a float or an array): theta plus
+    encoder_noise (rad) times the standard normal draw(s) z, rounded to the resolution q
+    (rad)."""
+    return q * np.rint((theta + encoder_noise * z) / q)
+
+
+@njit(cache=True)
 def _sense_rows(theta, omega, tau, d, rows, z, q, encoder_noise, torque_noise, tactile_noise,
                 dt, first, tactile, angle, gain, bias):
     """The readings of the rows ``rows`` (int (K,)) in place, from the standard normal draws
@@ -270,7 +277,7 @@ def _sense_rows(theta, omega, tau, d, rows, z, q, encoder_noise, torque_noise, t
     for k in range(rows.shape[0]):
         i = rows[k]
         for j in range(2):
-            reading = q * np.rint((theta[i, j] + encoder_noise * z[k, j]) / q)
+            reading = _encoder_reading(theta[i, j], z[k, j], q, encoder_noise)
             if not first:
                 omega[i, j] = (reading - angle[i, j]) / dt
             angle[i, j] = reading

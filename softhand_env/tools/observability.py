@@ -168,8 +168,7 @@ def collect(env_id: str, env_kwargs: dict[str, Any] | None = None, episodes: int
     env = gym.make(env_id, **kw)
     layout = env.unwrapped.config.layout  # type: ignore[attr-defined]
     # the newest frame, then the grasp-onset entries (if any) that follow the frames
-    cols = np.r_[0:layout.frame_size,
-                 layout.history_size:layout.history_size + layout.onset_size]
+    cols = np.r_[0:layout.frame_size, layout.history_size:layout.blind_size]
     sensing = sensing_of(env.unwrapped)
     dt = float(env.unwrapped.dt)  # type: ignore[attr-defined]
     frames, poses, compressions = [], [], []
