@@ -53,6 +53,7 @@ from agents.sb3.training import (
     next_run_dir,
     probe_signature,
     resolve_config,
+    rewind_validation,
     start_from,
 )
 
@@ -80,10 +81,12 @@ class HeldOutEvalCallback(EvalCallback):
     """EvalCallback on a fixed goal set: logs the success rate and the final errors, keeps
     the best model (``best_model.zip``) and its statistics by (success rate, -median error)."""
 
-    def __init__(self, targets: tuple[str, ...], run_dir: Path,
+    def __init__(self, targets: tuple[str, ...], run_dir: Path, eval_seed: int,
                  stop_success: float | None = None, **kwargs: Any):
         super().__init__(best_model_save_path=None, **kwargs)
         self.targets = targets
+        #: Seed of the first validation goal (goal k: ``reset(seed=eval_seed + k)``).
+        self.eval_seed = eval_seed
         #: Stop training once the validation success rate reaches this (None: never).
         self.stop_success = stop_success
         #: Env steps at which training stopped on ``stop_success`` (None: it did not).
@@ -101,7 +104,7 @@ class HeldOutEvalCallback(EvalCallback):
     def _on_step(self) -> bool:
         if not (self.eval_freq > 0 and self.n_calls % self.eval_freq == 0):
             return True
-        self.eval_env.env_method("rewind")  # same validation goals every time
+        rewind_validation(self.eval_env, self.eval_seed)  # same validation goals every time
         self._errors = []
         keep_going = super()._on_step()
         summary = summarize(self.targets, self._is_success_buffer, self._errors)
@@ -159,7 +162,7 @@ def train(config: RunConfig, run_dir: Path, model: Any, eval_env: Any,
     n_envs = config.n_envs
     evaluation = HeldOutEvalCallback(
         targets=task_targets(env_id), run_dir=run_dir, eval_env=eval_env,
-        stop_success=ev.stop_success,
+        eval_seed=ev.eval_seed, stop_success=ev.stop_success,
         n_eval_episodes=ev.n_eval_episodes,
         eval_freq=max(ev.eval_freq // n_envs, 1) if ev.eval_freq > 0 else 0,
         log_path=str(run_dir), deterministic=True, verbose=1,

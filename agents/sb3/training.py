@@ -40,7 +40,7 @@ from agents.runs.hyperparams import (
 )
 from agents.runs.records import EvalSettings, RunConfig, RunRecord
 from agents.sb3 import policies  # noqa: F401  (registers AsymmetricPolicy / BlindActorPolicy)
-from agents.sb3.native_vec_env import SB3_VEC_ENVS, make_sb3_vec_env, vector_wrappers
+from agents.sb3.native_vec_env import SB3_VEC_ENVS, NativeVecEnv, make_sb3_vec_env
 
 _Settings = TypeVar("_Settings", bound="TrainSettings")
 
@@ -237,6 +237,37 @@ def check_normalize(norm: dict[str, Any]) -> None:
             raise UserError(f"normalize: {key} must be true or false (got {str(norm[key])[:40]})")
 
 
+def make_validation_env(env_id: str, env_kwargs: dict[str, Any], wrapper: Any, vec_env: str,
+                        ev: EvalSettings) -> Any:
+    """The SB3 ``VecEnv`` that plays the validation goals ``reset(seed=ev.eval_seed + k)``,
+    k < ``ev.n_eval_episodes``, with the benchmark's success rule (``ev.success_kwargs``).
+
+    With the native vector env (``vec_env="native"``) one hand per goal, in one
+    :class:`~agents.sb3.native_vec_env.NativeVecEnv` under the training env's vector
+    wrappers (the same chain, which VecNormalize's statistics sync walks level by level);
+    otherwise one monitored env that plays the goals in turn
+    (:class:`~agents.common.env_factory.GoalSeeds`). Call :func:`rewind_validation` before
+    each evaluation."""
+    kwargs = {**env_kwargs, **ev.success_kwargs}
+    if vec_env == "native":
+        return make_sb3_vec_env(env_id, ev.n_eval_episodes, ev.eval_seed, kwargs, "native",
+                                env_wrapper=wrapper)
+    return make_vec_env(env_id, 1, kwargs, None,
+                        seeds=goal_seeds(ev.eval_seed, ev.n_eval_episodes),
+                        env_wrapper=wrapper)
+
+
+def rewind_validation(eval_env: Any, eval_seed: int) -> None:
+    """Make the next ``reset()`` of a :func:`make_validation_env` env start its goal set over
+    (hand k of the native env seeded ``eval_seed + k``; the single env's
+    :class:`~agents.common.env_factory.GoalSeeds` rewound), so that every evaluation plays the
+    same goals."""
+    if isinstance(eval_env.unwrapped, NativeVecEnv):
+        eval_env.seed(eval_seed)
+    else:
+        eval_env.env_method("rewind")
+
+
 def build(config: RunConfig, verbose: int = 1) -> tuple[Any, Any]:
     """The algorithm (on its training envs) and the validation env of a run config.
 
@@ -256,18 +287,7 @@ def build(config: RunConfig, verbose: int = 1) -> tuple[Any, Any]:
     wrapper = config.env_wrapper
     env = make_sb3_vec_env(env_id, config.n_envs, seed, config.env_kwargs, rec.vec_env,
                            env_wrapper=wrapper)
-    ev = rec.eval
-    # with the native env the wrappers are VecEnv wrappers: the validation env gets the same
-    # chain (VecNormalize's statistics sync walks both chains level by level)
-    vector = rec.vec_env == "native"
-    eval_env = make_vec_env(
-        env_id, 1, {**config.env_kwargs, **ev.success_kwargs}, None,
-        seeds=goal_seeds(ev.eval_seed, ev.n_eval_episodes),
-        env_wrapper=None if vector else wrapper,
-    )
-    if vector:
-        for cls, wkw in vector_wrappers(wrapper):
-            eval_env = cls(eval_env, **wkw)
+    eval_env = make_validation_env(env_id, config.env_kwargs, wrapper, rec.vec_env, rec.eval)
     try:
         if norm is not None:
             norm_kw = {"gamma": kwargs.get("gamma", 0.99), **norm}

@@ -213,6 +213,52 @@ def test_goal_seeds_replay_the_same_goals_after_rewind():
     assert not np.array_equal(goals[0], goals[1])
 
 
+def _play_validation(env, eval_seed):
+    """(goal, success, final pose) of each validation episode, in goal order, under a policy
+    that acts on each observation row alone (so batching cannot change an action)."""
+    from stable_baselines3.common.evaluation import evaluate_policy
+
+    from agents.sb3.training import rewind_validation
+
+    class RowPolicy:
+        def predict(self, obs, state=None, episode_start=None, deterministic=True):
+            return np.clip(0.8 * np.sin(3.0 * obs[:, :2] + 1.0), -1, 1), state
+
+    done_infos = []
+
+    def keep(locals_, globals_):
+        if locals_["done"]:
+            done_infos.append(locals_["info"])
+
+    rewind_validation(env, eval_seed)
+    evaluate_policy(RowPolicy(), env, n_eval_episodes=env.num_envs if env.num_envs > 1 else 3,
+                    deterministic=True, callback=keep)
+    rows = [(tuple(i["goal"]), bool(i["is_success"]), tuple(i["object_pose"]))
+            for i in done_infos]
+    return sorted(rows)
+
+
+def test_native_validation_plays_the_single_env_goal_set_with_the_same_outcomes():
+    from agents.common.metrics import success_kwargs
+    from agents.runs.records import EvalSettings
+    from agents.sb3.native_vec_env import NativeVecEnv
+    from agents.sb3.training import make_validation_env
+
+    env_id, kwargs = "SoftHandPoseRandom-v1", {"max_episode_steps": 30, "control_dt": 0.04}
+    ev = EvalSettings(eval_freq=1, n_eval_episodes=3, eval_seed=5000,
+                      success_kwargs=success_kwargs(env_id), stop_success=None)
+    native = make_validation_env(env_id, kwargs, None, "native", ev)
+    single = make_validation_env(env_id, kwargs, None, "dummy", ev)
+    assert isinstance(native.unwrapped, NativeVecEnv) and native.num_envs == 3
+    assert single.num_envs == 1
+    first = _play_validation(native, ev.eval_seed)
+    assert first == _play_validation(single, ev.eval_seed)  # bit for bit
+    assert first == _play_validation(native, ev.eval_seed)  # rewound: the same goals again
+    assert len({goal for goal, _, _ in first}) == 3
+    native.close()
+    single.close()
+
+
 @pytest.mark.parametrize(
     "argv,fragment",
     [
