@@ -61,7 +61,6 @@ from agents.common.metrics import (
     final_errors,
     is_failure,
     strict_success,
-    success_kwargs,
     summarize,
     summary_success_text,
 )
@@ -77,9 +76,11 @@ from agents.sb3.training import (
     TrainSettings,
     build,
     make_parser,
+    make_validation_env,
     next_run_dir,
     probe_signature,
     resolve_config,
+    rewind_validation,
     start_from,
 )
 from softhand_env.envs.observation import ObservationLayout
@@ -299,7 +300,7 @@ def validate(model: Any, venv: Any, targets: Sequence[str], eval_seed: int,
     ``venv``, re-seeded here; the first episode of each). ``stop``: checked before every step
     (:class:`~agents.sb3.interrupts.Interrupted` once a signal was received)."""
     n_eval = venv.num_envs
-    venv.seed(eval_seed)
+    rewind_validation(venv, eval_seed)
     obs = venv.reset()
     finished: dict[int, dict[str, Any]] = {}
     while len(finished) < n_eval:
@@ -501,9 +502,7 @@ def dagger(model: Any, teacher: ModelPolicy, env_id: str, kwargs: dict[str, Any]
     xs: list[np.ndarray] = []
     ys: list[np.ndarray] = []
     targets = task_targets(env_id)
-    eval_venv = make_sb3_vec_env(env_id, validation.n_eval_episodes, validation.eval_seed,
-                                 {**kwargs, **success_kwargs(env_id)}, "native",
-                                 env_wrapper=wrapper)
+    eval_venv = make_validation_env(env_id, kwargs, wrapper, "native", validation)
     signals = stop if stop is not None else DeferredSignals("distillation")  # never installed
     best: dict[str, Any] | None = None
     best_state: dict[str, Any] | None = None
