@@ -12,7 +12,6 @@ scripted policies' ``predict`` signature, so one rollout loop evaluates both.
 
 from __future__ import annotations
 
-import re
 import sys
 from collections.abc import Sequence
 from dataclasses import dataclass, field
@@ -27,12 +26,12 @@ from agents.common.env_factory import make_env, short_repr, wrapper_list
 from agents.runs.hyperparams import ALGOS, algo_class, normalize_kwargs
 from agents.runs.layout import (
     ARGS_FILE,
-    BEST_MODEL,
     CONFIG_FILE,
     MANIFEST_FILE,
     MODELS_DIR,
     RECORD_KEY,
     STATS_NPZ,
+    stats_base,
 )
 from agents.runs.model_files import (
     ModelFileError,
@@ -51,7 +50,6 @@ from agents.runs.task_keywords import (
 from agents.runs.zoo_dialect import zoo_yaml_load
 
 TASK_KEY_SET = frozenset(task_keys())
-_CHECKPOINT = re.compile(r"rl_model_(\d+)_steps")
 
 
 @dataclass
@@ -110,14 +108,7 @@ def _read_yaml(path: Path) -> dict[str, Any]:
 
 
 def _stats_files(zip_path: Path, run_dir: Path, env_id: str) -> tuple[Path, Path]:
-    stem = zip_path.stem
-    match = _CHECKPOINT.fullmatch(stem)
-    if match:
-        base = run_dir / f"rl_model_vecnormalize_{match.group(1)}_steps"
-    elif stem == BEST_MODEL and (run_dir / f"{BEST_MODEL}_vecnormalize.npz").is_file():
-        base = run_dir / f"{BEST_MODEL}_vecnormalize"
-    else:
-        base = run_dir / env_id / "vecnormalize"
+    base = stats_base(run_dir, env_id, zip_path.stem)
     return base.with_suffix(".npz"), base.with_suffix(".pkl")
 
 

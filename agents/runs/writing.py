@@ -77,25 +77,43 @@ def _write_config(run_dir: Path, env_id: str, hyperparams: dict[str, Any],
     return path
 
 
-def reseal(run_dir: Path) -> Path:
-    """Rewrite the manifest and the sha256 record of the run in ``run_dir`` (an existing run
-    whose every recorded file still has its recorded checksum; ValueError otherwise)."""
-    from agents.runs.model_files import check_sha256, check_sha_record
+def read_run(run_dir: Path) -> tuple[str, dict[str, Any], dict[str, Any]]:
+    """``(env id, hyper-parameters, record)`` of the run in ``run_dir`` (its one
+    ``<env id>/config.yml``; ValueError if there is not exactly one)."""
     from agents.runs.zoo_dialect import zoo_yaml_load
 
     configs = [d for d in sorted(Path(run_dir).iterdir()) if (d / CONFIG_FILE).is_file()]
     if len(configs) != 1:
         raise ValueError(f"{run_dir}: expected one <env id>/{CONFIG_FILE}")
-    env_id = configs[0].name
     config = zoo_yaml_load((configs[0] / CONFIG_FILE).read_text(), str(configs[0]))
     saved = config.pop(RECORD_KEY)
+    if not isinstance(saved, dict):
+        raise ValueError(f"{configs[0] / CONFIG_FILE}: no {RECORD_KEY} record")
+    return configs[0].name, config, saved
+
+
+def verified_files(run_dir: Path, env_id: str, saved: dict[str, Any]) -> dict[str, str]:
+    """Check every file of the record's ``sha256`` present in ``run_dir`` against its
+    checksum (ModelFileError on a mismatch; the manifest is rewritten, so not checked) and
+    return the entries of the recorded files that are absent (e.g. a ``best_model.zip`` not
+    shipped), which a re-sealed record keeps."""
+    from agents.runs.model_files import check_sha256, check_sha_record
+
     sums = check_sha_record(saved.get("sha256"))
-    absent = {}  # recorded files not shipped (e.g. best_model.zip): their entries are kept
+    absent = {}
     for rel, digest in sums.items():
         if not (Path(run_dir) / rel).is_file():
             absent[rel] = digest
         elif rel != f"{env_id}/{MANIFEST_FILE}":
             check_sha256(Path(run_dir), Path(run_dir) / rel, sums)
+    return absent
+
+
+def reseal(run_dir: Path) -> Path:
+    """Rewrite the manifest and the sha256 record of the run in ``run_dir`` (an existing run
+    whose every recorded file still has its recorded checksum; ValueError otherwise)."""
+    env_id, config, saved = read_run(Path(run_dir))
+    absent = verified_files(Path(run_dir), env_id, saved)
     return _write_config(Path(run_dir), env_id, config, saved, absent)
 
 
