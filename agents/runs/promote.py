@@ -70,6 +70,8 @@ def promote(run_dir: str | Path, source: str = f"{BEST_MODEL}.zip") -> Path:
             stem == BEST_MODEL or CHECKPOINT.fullmatch(stem)):
         raise UserError(f"--source must be {BEST_MODEL}.zip or rl_model_<n>_steps.zip in the "
                         f"run directory (got {source!r})")
+    if not run_dir.is_dir():
+        raise UserError(f"{run_dir}: no such run directory")
     env_id, config, saved = read_run(run_dir)
     if "shipped_model" in saved:
         raise UserError(f"{run_dir}: already promoted (its record has shipped_model: "

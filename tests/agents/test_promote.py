@@ -114,6 +114,10 @@ def _files(run: Path) -> dict[str, str]:
     return {p.relative_to(run).as_posix(): sha256(p) for p in run.rglob("*") if p.is_file()}
 
 
+def test_a_missing_run_directory_is_one_line(tmp_path, capsys):
+    _refused(capsys, [str(tmp_path / "nowhere")], "no such run directory")
+
+
 def test_a_second_promotion_is_refused(run, capsys):
     cli.run_cli(promote_mod.main, [str(run)])
     capsys.readouterr()
