@@ -26,7 +26,7 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
-from agents.common.cli import ArgumentParser, UserError, run_cli
+from agents.common.cli import ArgumentParser, UserError, check_run_location, run_cli
 from agents.runs.layout import (
     BEST_MODEL,
     CHECKPOINT,
@@ -61,8 +61,9 @@ def _copy(src: Path, dst: Path) -> None:
 def promote(run_dir: str | Path, source: str = f"{BEST_MODEL}.zip") -> Path:
     """Make ``run_dir``/``source`` (``best_model.zip`` or ``rl_model_<n>_steps.zip``) the
     run's final model, keeping the previous one as ``final_model.zip`` (see the module
-    docstring). Returns the rewritten ``config.yml``. :class:`UserError` for a source that is
-    not one of those names or is absent, missing statistics, or a run promoted before;
+    docstring). Returns the rewritten ``config.yml``. :class:`UserError` for a missing run
+    directory or one inside the package's model folder, a source that is not one of those
+    names or is absent, missing statistics, or a run promoted before;
     ``ModelFileError`` when a recorded file no longer has its checksum."""
     run_dir = Path(run_dir)
     stem = Path(source).stem
@@ -72,6 +73,7 @@ def promote(run_dir: str | Path, source: str = f"{BEST_MODEL}.zip") -> Path:
                         f"run directory (got {source!r})")
     if not run_dir.is_dir():
         raise UserError(f"{run_dir}: no such run directory")
+    check_run_location(run_dir, "the run directory")  # shipped models are never written to
     env_id, config, saved = read_run(run_dir)
     if "shipped_model" in saved:
         raise UserError(f"{run_dir}: already promoted (its record has shipped_model: "

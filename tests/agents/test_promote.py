@@ -15,7 +15,7 @@ import pytest
 
 from agents.common import cli
 from agents.runs import promote as promote_mod
-from agents.runs.loading import ModelPolicy
+from agents.runs.loading import ModelPolicy, shipped_models
 from agents.runs.model_files import sha256
 from agents.runs.writing import read_run
 
@@ -116,6 +116,13 @@ def _files(run: Path) -> dict[str, str]:
 
 def test_a_missing_run_directory_is_one_line(tmp_path, capsys):
     _refused(capsys, [str(tmp_path / "nowhere")], "no such run directory")
+
+
+def test_a_shipped_model_is_never_written_to(capsys):
+    shipped = shipped_models()["SoftHandReorientRandom-v1"].parent
+    files = _files(shipped)
+    _refused(capsys, [str(shipped)], "inside the package's model folder")
+    assert _files(shipped) == files
 
 
 def test_a_second_promotion_is_refused(run, capsys):
