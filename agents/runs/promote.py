@@ -11,7 +11,7 @@ final one:
   ``final_model_vecnormalize.*`` (loaded with their own statistics; nothing is lost);
 * the chosen model and its statistics are copied over the final files;
 * the record gains ``shipped_model``: ``{from: <file>, timesteps: <env steps>}`` and the
-  checksums are rewritten (:func:`agents.runs.writing.reseal`'s sealing).
+  checksums are rewritten (:func:`agents.runs.writing.seal_config`, as ``reseal`` does).
 
 A run is promoted once (a second call is refused)::
 
@@ -36,7 +36,7 @@ from agents.runs.layout import (
     STATS_PKL,
     stats_base,
 )
-from agents.runs.writing import _write_config, read_run, verified_files
+from agents.runs.writing import read_run, seal_config, verified_files
 
 
 def _source_timesteps(stem: str, saved: dict[str, Any]) -> int:
@@ -82,8 +82,6 @@ def promote(run_dir: str | Path, source: str = f"{BEST_MODEL}.zip") -> Path:
     if not src_zip.is_file():
         raise UserError(f"{src_zip}: no such model in the run")
     absent = verified_files(run_dir, env_id, saved)
-    if source in absent:
-        raise UserError(f"{src_zip}: no such model in the run")
     params = run_dir / env_id
     final_zip = run_dir / f"{env_id}.zip"
     kept_zip = run_dir / f"{FINAL_MODEL}.zip"
@@ -107,7 +105,7 @@ def promote(run_dir: str | Path, source: str = f"{BEST_MODEL}.zip") -> Path:
     for final, kept, new in pairs:
         _copy(final, kept)
         _copy(new, final)
-    return _write_config(run_dir, env_id, config, saved, absent)
+    return seal_config(run_dir, env_id, config, saved, absent)
 
 
 def main(argv: Sequence[str] | None = None) -> Path:

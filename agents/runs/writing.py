@@ -59,11 +59,15 @@ def write_run_config(run_dir: Path, env_id: str, hyperparams: dict[str, Any],
     ``sha256`` of :func:`model_files` (written last, after every model file) and
     ``weights_sha256`` of each zip (:func:`~agents.runs.model_files.weights_sha256`: the
     network weights, unchanged by the zip's timestamps)."""
-    return _write_config(run_dir, env_id, hyperparams, record.to_yaml())
+    return seal_config(run_dir, env_id, hyperparams, record.to_yaml())
 
 
-def _write_config(run_dir: Path, env_id: str, hyperparams: dict[str, Any],
-                  saved: dict[str, Any], absent: dict[str, str] | None = None) -> Path:
+def seal_config(run_dir: Path, env_id: str, hyperparams: dict[str, Any],
+                saved: dict[str, Any], absent: dict[str, str] | None = None) -> Path:
+    """Write ``<env id>/manifest.yml`` (the digest of ``hyperparams`` and the record
+    ``saved``), then ``<env id>/config.yml``: ``hyperparams`` plus ``saved`` with ``sha256``
+    of :func:`model_files` as they are now (plus the ``absent`` entries: recorded files not
+    present, kept as recorded) and ``weights_sha256`` of each zip."""
     params = run_dir / env_id
     params.mkdir(parents=True, exist_ok=True)
     saved = {k: v for k, v in saved.items() if k not in ("sha256", "weights_sha256")}
@@ -114,7 +118,7 @@ def reseal(run_dir: Path) -> Path:
     whose every recorded file still has its recorded checksum; ValueError otherwise)."""
     env_id, config, saved = read_run(Path(run_dir))
     absent = verified_files(Path(run_dir), env_id, saved)
-    return _write_config(Path(run_dir), env_id, config, saved, absent)
+    return seal_config(Path(run_dir), env_id, config, saved, absent)
 
 
 if __name__ == "__main__":
