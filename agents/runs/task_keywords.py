@@ -6,8 +6,9 @@ plus the Dict-observation flags) is in exactly one class:
 
 * :data:`AGENT_KEYS`: the agent's choices, kept from the model's config: its control period
   (``control_dt``), action mapping (``action_mode``, ``normalize_action``, ``max_delta_deg``,
-  ``joint_range_deg``) and observation layout (``obs_mode``, ``history_len``, ``goal_obs``,
-  ``privileged_obs``). The benchmark's physical checks do not depend on them.
+  ``joint_range_deg``, ``setpoint_ramp_ms``) and observation layout (``obs_mode``,
+  ``history_len``, ``goal_obs``, ``privileged_obs``). The benchmark's physical checks do not
+  depend on them.
 * :data:`REWARD_KEYS`: the reward shaping of training (error scales, weights). It does not
   change success or the final errors; at evaluation the registered id's reward is used and the
   model's values are dropped.
@@ -35,8 +36,8 @@ from agents.common.env_factory import short_repr
 
 #: The agent's keywords (kept from a model's config).
 AGENT_KEYS = ("control_dt", "action_mode", "normalize_action", "max_delta_deg",
-              "joint_range_deg", "obs_mode", "history_len", "onset_obs", "goal_obs",
-              "privileged_obs")
+              "joint_range_deg", "setpoint_ramp_ms", "obs_mode", "history_len", "onset_obs",
+              "goal_obs", "privileged_obs")
 #: Reward shaping of training (replaced by the registered id's at evaluation).
 REWARD_KEYS = ("x_scale_mm", "theta_scale_deg", "goal_weight", "success_weight",
                "ctrl_weight", "failure_weight")

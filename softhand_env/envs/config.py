@@ -29,6 +29,8 @@ from softhand_env.physics.stability import warn_if_unstable
 #: the keywords): they bound the hand's dt from below.
 MAX_SUBSTEPS = 100_000
 MAX_GRASP_SUBSTEPS = 1_000_000
+#: Stair length of a set-point ramp (``setpoint_ramp_ms``), s.
+RAMP_STAIR_S = 0.01
 
 #: Allowed ``render_mode`` values.
 RENDER_MODES = KEYWORDS["render_mode"].choices
@@ -80,6 +82,13 @@ class EnvConfig:
     slip_window : int or None
         Slip and tension are judged on windows of this many RK4 substeps, tiled from the end
         of the grasp phase (None: on each control step).
+    setpoint_ramp : int
+        The set-points of a control step move from the previous ones to the new command over
+        this many RK4 substeps (``setpoint_ramp_ms``; 0: they jump at the step's start), in
+        stairs of ``ramp_stair`` substeps: stair k (0-based) holds the previous set-points
+        plus (k + 1) / K of the change, K = ``setpoint_ramp / ramp_stair``.
+    ramp_stair : int
+        Stair length in RK4 substeps (:data:`RAMP_STAIR_S`).
     render_mode : str or None
     render_size : (int, int)
         Frame (width, height) in pixels.
@@ -106,6 +115,8 @@ class EnvConfig:
     render_size: tuple[int, int]
     substep_limits: bool = False
     slip_window: int | None = None
+    setpoint_ramp: int = 0
+    ramp_stair: int = 0
 
 
 def _pair(value: Sequence[float]) -> tuple[float, float]:
@@ -169,6 +180,7 @@ def build_config(options: EnvOptions) -> EnvConfig:
                 f"slip_window_ms must be a multiple of the RK4 substep {params.dt * 1e3:g} ms "
                 f"(got {o.slip_window_ms!r})"
             )
+    setpoint_ramp, ramp_stair = _ramp(o, params.dt, n_substeps, slip_window)
     task_obj = make_task(o.task, **task_kw)
     randomization = Randomization.resolve(bool(o.randomize), **rand_kw)
     randomization.check_ranges(params)
@@ -208,4 +220,31 @@ def build_config(options: EnvOptions) -> EnvConfig:
         render_size=(int(o.render_width), int(o.render_height)),
         substep_limits=bool(o.substep_limits),
         slip_window=slip_window,
+        setpoint_ramp=setpoint_ramp,
+        ramp_stair=ramp_stair,
     )
+
+
+def _ramp(o: EnvOptions, dt: float, n_substeps: int,
+          slip_window: int | None) -> tuple[int, int]:
+    """``setpoint_ramp_ms`` as (ramp, stair) in RK4 substeps of ``dt`` (s), checked against the
+    control step of ``n_substeps`` substeps and the slip windows (``ValueError``)."""
+    ramp_s = float(o.setpoint_ramp_ms) * 1e-3
+    if ramp_s == 0.0:
+        return 0, 0
+    stairs = round(ramp_s / RAMP_STAIR_S)
+    if abs(stairs * RAMP_STAIR_S - ramp_s) > 1e-9:
+        raise ValueError(f"setpoint_ramp_ms must be a multiple of {RAMP_STAIR_S * 1e3:g} ms "
+                         f"(got {o.setpoint_ramp_ms!r})")
+    stair = round(RAMP_STAIR_S / dt)
+    if abs(stair * dt - RAMP_STAIR_S) > 1e-12:
+        raise ValueError(f"setpoint_ramp_ms needs an RK4 substep that divides "
+                         f"{RAMP_STAIR_S * 1e3:g} ms (the hand's dt is {dt:g} s)")
+    if stairs * stair > n_substeps:
+        raise ValueError(f"setpoint_ramp_ms must be at most control_dt = {n_substeps * dt * 1e3:g}"
+                         f" ms (got {o.setpoint_ramp_ms!r})")
+    if slip_window is None:
+        raise ValueError("setpoint_ramp_ms steps the physics stair by stair, which needs slip "
+                         "and tension judged on windows of physical time: set slip_window_ms "
+                         "(the -v1 ids do)")
+    return stairs * stair, stair

@@ -310,6 +310,11 @@ class EnvOptions:
                                        "are judged, a multiple of the RK4 substep (None: "
                                        "the control step, the v0 semantics)", "number", "ms",
                                        low=1.0, high=1000.0)
+    setpoint_ramp_ms: float = _kw(0.0, "time over which a control step's set-points move "
+                                  "from the previous ones to the new command, in stairs of "
+                                  "10 ms (0: they jump at the step's start); a multiple of "
+                                  "10 ms, at most ``control_dt``; needs ``slip_window_ms``",
+                                  "number", "ms", low=0.0, high=1000.0)
 
     def as_dict(self) -> dict[str, Any]:
         """The keywords and their values, in signature order."""

@@ -36,6 +36,8 @@ field                  meaning
                        reads ``ideal`` (:data:`LEGACY_VALUES`)
 ``onset_obs``          the grasp-onset entries follow the frames (a signature saved before
                        the field existed reads ``False``)
+``setpoint_ramp_ms``   time over which a step's set-points move to the command (ms; a
+                       signature saved before the field existed reads ``0.0``, a jump)
 =====================  ====================================================================
 
 The ``-v0`` and ``-v1`` ids are distinct ids (``env_id``), so a model trained on a ``-v0`` id
@@ -85,11 +87,13 @@ SIGNATURE_FIELDS = (
     "control_dt",
     "sensor_model",
     "onset_obs",
+    "setpoint_ramp_ms",
 )
 
 #: Values of fields added after signatures were first saved, as a signature without the field
 #: means them (the model was trained when only that value existed).
-LEGACY_VALUES: dict[str, Any] = {"sensor_model": "ideal", "onset_obs": False}
+LEGACY_VALUES: dict[str, Any] = {"sensor_model": "ideal", "onset_obs": False,
+                                 "setpoint_ramp_ms": 0.0}
 
 #: Relative tolerance for float fields (they round-trip through degrees/radians and JSON).
 FLOAT_RTOL = 1e-9
@@ -166,6 +170,7 @@ def env_signature(env: Any) -> dict[str, Any]:
         "control_dt": cfg.dt,
         "sensor_model": cfg.sensors.name,
         "onset_obs": cfg.layout.onset,
+        "setpoint_ramp_ms": cfg.setpoint_ramp * cfg.params.dt * 1e3,
     }
 
 

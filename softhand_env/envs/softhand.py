@@ -310,6 +310,9 @@ class SoftHandEnv(gym.Env):
       within 0.04 mm / 0.08 deg of RK4 at 0.1 ms on the paper's motions (before 0.021 mm /
       0.017 deg); the shipped ``-v1`` agents replayed on their 300 test goals change by at
       most one goal (docs/results.md).
+    - v1, set-point ramp: keyword ``setpoint_ramp_ms`` (the set-points move to a step's
+      command in 10 ms stairs; an action choice of the agent and a field of the env
+      signature); its default 0 keeps the episodes of every id bit for bit.
     """
 
     metadata = {"render_modes": list(RENDER_MODES), "render_fps": 50}
@@ -363,6 +366,7 @@ class SoftHandEnv(gym.Env):
         render_height: int = 480,
         substep_limits: bool = False,
         slip_window_ms: float | None = None,
+        setpoint_ramp_ms: float = 0.0,
     ):
         #: The keywords of this environment (:class:`~softhand_env.envs.options.EnvOptions`).
         given = locals()

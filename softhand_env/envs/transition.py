@@ -197,8 +197,9 @@ class EpisodeBatch:
         if not cfg.sensors.ideal:
             self.sensing = SensorState(cfg.sensors, n, cfg.dt, cfg.layout.tactile,
                                        cfg.rand_sensors)
-        # one episode steps in one compiled call (:mod:`.fused`)
-        self._fused = n == 1
+        # one episode steps in one compiled call (:mod:`.fused`; a set-point ramp through
+        # the batched path, its pieces cut at the stairs)
+        self._fused = n == 1 and cfg.setpoint_ramp == 0
         self._applied = np.empty((n, 2))
         self._cmd = np.empty((n, 2))
         self._ctrl = np.empty(n)
@@ -460,7 +461,8 @@ class EpisodeBatch:
         if windows is None:
             p.step(u, cfg.n_substeps, strict=False, skip=skip, out=self._status)
             return True, self._failed, self.grasped, self._bad, ctrl
-        status = windows.step(p, u, cfg.n_substeps, self.mu, cfg.terminate_on_slip, skip)
+        status = windows.step(p, u, cfg.n_substeps, self.mu, cfg.terminate_on_slip, skip,
+                              cfg.setpoint_ramp, cfg.ramp_stair)
         self.contact_impulse[:] = status.impulse
         self.friction_ratio[:] = status.friction_ratio
         self.tension[:] = status.tension

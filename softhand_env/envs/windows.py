@@ -17,6 +17,11 @@ piece (:meth:`~softhand_env.physics.HandPhysics.step`).
 
 Every hand is cut at its own window ends only (hands with other window phases are stepped in
 separate calls), so N environments in one batch give bit for bit what N single ones give.
+
+A set-point ramp (``setpoint_ramp_ms``) cuts the pieces at its stair ends too: the first
+``ramp`` substeps of a control step are integrated stair by stair, stair k (0-based, of
+``stair`` substeps) holding the set-points before the step plus (k + 1) / K of the step's
+change (K = ``ramp / stair``), the rest of the step at the new set-points.
 """
 
 from __future__ import annotations
@@ -149,14 +154,19 @@ class SlipWindows:
         mu: np.ndarray,
         stop: bool,
         skip: np.ndarray | None = None,
+        ramp: int = 0,
+        stair: int = 0,
     ) -> WindowedStep:
         """One control step of ``n_substeps`` substeps of every hand of ``physics`` (N, with
         the hand axis) holding ``setpoint`` (N, 2) (rad), judged on the windows.
 
         ``mu`` (N,) is each hand's friction coefficient; ``stop``: a hand whose window slipped
-        or pulled stops at that window's end; ``skip`` (N,) bool: hands left untouched.
+        or pulled stops at that window's end; ``skip`` (N,) bool: hands left untouched;
+        ``ramp`` > 0: the set-points move from the physics' current ones to ``setpoint`` over
+        the first ``ramp`` substeps in stairs of ``stair`` substeps (see the module doc).
         """
         n = physics.num_hands
+        start = physics.step_arrays()[1].copy() if ramp > 0 else setpoint
         active = np.ones(n, dtype=bool) if skip is None else ~np.asarray(skip, dtype=bool)
         done = np.zeros(n, dtype=np.int64)
         flags = np.zeros(n, dtype=np.int64)
@@ -170,12 +180,19 @@ class SlipWindows:
         contact = np.zeros(n, dtype=bool)
         while True:
             piece = np.minimum(n_substeps - done, self.left)
+            target = setpoint
+            if ramp > 0:  # cut at the stair ends; a stair's share of the change
+                ramping = done < ramp
+                piece = np.where(ramping, np.minimum(piece, stair - done % stair), piece)
+                share = np.minimum((done // stair + 1) * stair / ramp, 1.0)
+                target = np.where((share < 1.0)[:, None],
+                                  start + (setpoint - start) * share[:, None], setpoint)
             todo = active & (piece > 0)
             if not todo.any():
                 break
             length = int(piece[todo].max())
             m = todo & (piece == length)
-            st = physics.step(setpoint, length, strict=False, skip=~m).hands
+            st = physics.step(target, length, strict=False, skip=~m).hands
             # every hand in this piece (the usual case): whole rows, no masked copies
             sel: slice | np.ndarray = slice(None) if m.all() else m
             failed[sel] = st.failed[sel]
