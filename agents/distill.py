@@ -175,16 +175,21 @@ def parse_args(argv: Sequence[str] | None = None) -> DistillSettings:
 #: Observation keywords in which the student may read more than its teacher (its observation
 #: then contains the teacher's: more frames of history, tactile entries added to each frame).
 VIEW_KEYS = ("history_len", "obs_mode", "onset_obs")
+#: Action keywords in which student and teacher may differ: the teacher acts in the student's
+#: env, so a student with a set-point ramp of its own is labelled by a teacher acting with it.
+ACTUATION_KEYS = ("setpoint_ramp_ms",)
 
 
 def check_pair(teacher: ModelPolicy, env_id: str, hp: dict[str, Any],
                blind_teacher: bool = False) -> tuple[dict[str, Any], dict[str, Any]]:
-    """The student's env keywords and the teacher's :data:`VIEW_KEYS` keywords.
+    """The student's env keywords and the teacher's :data:`VIEW_KEYS` and
+    :data:`ACTUATION_KEYS` keywords.
 
     Checks that the teacher plays the same env (same task, keywords besides
-    :data:`VIEW_KEYS` and the reward's :data:`~softhand_env.envs.tasks.REWARD_KWARGS`,
-    wrappers) with the privileged observation and that the student's observation contains
-    the teacher's (at least as many frames; tactile entries if the teacher's has them). With
+    :data:`VIEW_KEYS`, :data:`ACTUATION_KEYS` and the reward's
+    :data:`~softhand_env.envs.tasks.REWARD_KWARGS`, wrappers) with the privileged
+    observation and that the student's observation contains the teacher's (at least as many
+    frames; tactile entries if the teacher's has them). With
     ``blind_teacher`` the teacher must instead be a blind policy (no ``privileged_obs``) and
     the observations need not contain each other (the rollouts
     read both views, :func:`rollout_layout`). UserError otherwise.
@@ -203,15 +208,16 @@ def check_pair(teacher: ModelPolicy, env_id: str, hp: dict[str, Any],
     if s_kwargs.get("privileged_obs") or s_kwargs.get("goal_obs"):
         raise UserError("the student reads the plain blind observation: leave privileged_obs "
                         "and goal_obs out of its env_kwargs")
-    t_view = {key: t_kwargs.pop(key) for key in VIEW_KEYS if key in t_kwargs}
+    t_view = {key: t_kwargs.pop(key) for key in (*VIEW_KEYS, *ACTUATION_KEYS)
+              if key in t_kwargs}
     # the rollouts score nothing: a teacher trained on another reward plays the same task
     same_t, same_s = ({k: v for k, v in kwargs.items()
-                       if k not in VIEW_KEYS and k not in REWARD_KWARGS}
+                       if k not in (*VIEW_KEYS, *ACTUATION_KEYS) and k not in REWARD_KWARGS}
                       for kwargs in (t_kwargs, s_kwargs))
     if same_t != same_s:
         raise UserError(f"teacher and student env_kwargs differ (besides privileged_obs, "
-                        f"history_len, obs_mode, onset_obs and the reward's keywords): "
-                        f"{t_kwargs} vs {s_kwargs}")
+                        f"history_len, obs_mode, onset_obs, setpoint_ramp_ms and the reward's "
+                        f"keywords): {t_kwargs} vs {s_kwargs}")
     t_layout, s_layout = view_layout(t_view), view_layout(s_kwargs)
     if not blind_teacher and s_layout.history_len < t_layout.history_len:
         raise UserError(f"the student's history_len ({s_layout.history_len}) must be at least "
@@ -614,7 +620,7 @@ def main(argv: Sequence[str] | None = None) -> Path:
     kwargs, teacher_kwargs = check_pair(teacher, args.env, hp, args.dagger.blind_teacher)
     wrapper = config.env_wrapper
     rec.env_signature = probe_signature(args.env, kwargs, wrapper, args.seed)
-    plain = {k: v for k, v in kwargs.items() if k not in VIEW_KEYS}
+    plain = {k: v for k, v in kwargs.items() if k not in (*VIEW_KEYS, *ACTUATION_KEYS)}
     privileged = {} if args.dagger.blind_teacher else {"privileged_obs": True}
     teacher_env = make_env(args.env, {**plain, **teacher_kwargs, **privileged},
                            teacher.env_wrapper)  # the spaces of the teacher's view

@@ -193,6 +193,24 @@ def test_student_with_a_longer_history_feeds_the_teacher_its_newest_frames(tmp_p
         distill.check_pair(tolerance, ENV_ID, hp)
 
 
+def test_teacher_labels_a_student_with_its_own_setpoint_ramp():
+    """The teacher acts in the student's env: a set-point ramp may differ between them (the
+    teacher is checked against its own), any other action keyword may not."""
+    hp = {"env_kwargs": {**KWARGS, "setpoint_ramp_ms": 40.0}, "env_wrapper": WRAPPER,
+          "normalize": False}
+    plain = SimpleNamespace(env_id=ENV_ID, env_wrapper=WRAPPER,
+                            env_kwargs={**KWARGS, "privileged_obs": True})
+    assert distill.check_pair(plain, ENV_ID, hp) == (hp["env_kwargs"], {})
+    ramped = SimpleNamespace(env_id=ENV_ID, env_wrapper=WRAPPER, env_kwargs={
+        **KWARGS, "privileged_obs": True, "setpoint_ramp_ms": 20.0})
+    assert distill.check_pair(ramped, ENV_ID, {**hp, "env_kwargs": KWARGS}) == (
+        KWARGS, {"setpoint_ramp_ms": 20.0})
+    delta = SimpleNamespace(env_id=ENV_ID, env_wrapper=WRAPPER, env_kwargs={
+        **KWARGS, "privileged_obs": True, "max_delta_deg": 2.0})
+    with pytest.raises(UserError, match="env_kwargs differ"):
+        distill.check_pair(delta, ENV_ID, hp)
+
+
 def test_tactile_student_feeds_the_teacher_the_proprio_entries_of_its_frames():
     tactile = {**KWARGS, "obs_mode": "proprio_tactile", "history_len": 2}
     both = [make_sb3_vec_env(ENV_ID, 2, 3, {**kw, "privileged_obs": True}, "native",
