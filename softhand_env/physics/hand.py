@@ -253,25 +253,25 @@ def _prepare_step(SRC, U, Y, Y_PREV, FLAGS, DIAG, SKIP):
 
 
 @njit(cache=True)
-def _step_batch(SRC, Y, U, PRM, TIME, Y_PREV, SKIP, n, ros2, parallel, H, ch_limit, dn_limit,
-                base_limit, FLAGS, DIAG, FAILED, GRASPED, REASON):
-    """A step of N hands in one compiled call (what :meth:`HandPhysics.step` does):
-    :func:`_prepare_step` from SRC (N, 2) (rad) with the rollback states into Y_PREV and the
-    hands of SKIP (bool (N,)) skipped, then the kernel (:mod:`.kernel`'s RK4, or with ``ros2``
-    :mod:`softhand_env.physics.rosenbrock` at step ``H`` (s); its blocks over numba's threads
-    with ``parallel``, else on the calling thread), then :func:`_finish_step`, into the outputs
-    FLAGS, DIAG, FAILED, GRASPED, REASON (the shapes of :class:`StepStatus`). Every hand must
-    have the same integrator and, under ROS2, the same ``dt`` (:meth:`HandPhysics.set_params`
-    keeps them so). Returns False, with nothing changed, if SRC is not finite."""
+def _step_batch(SRC, Y, U, PRM, TIME, Y_PREV, SKIP, n, ros2, H, ch_limit, dn_limit, base_limit,
+                FLAGS, DIAG, FAILED, GRASPED, REASON):
+    """A step of N hands on the calling thread in one compiled call (what
+    :meth:`HandPhysics.step` does): :func:`_prepare_step` from SRC (N, 2) (rad) with the
+    rollback states into Y_PREV and the hands of SKIP (bool (N,)) skipped, then the kernel
+    (:mod:`.kernel`'s RK4, or with ``ros2`` :mod:`softhand_env.physics.rosenbrock` at step
+    ``H`` (s)), then :func:`_finish_step`, into the outputs FLAGS, DIAG, FAILED, GRASPED,
+    REASON (the shapes of :class:`StepStatus`). Every hand must have the same integrator and,
+    under ROS2, the same ``dt`` (:meth:`HandPhysics.set_params` keeps them so). Returns False,
+    with nothing changed, if SRC is not finite.
+
+    The kernels' parallel versions are called from Python (:meth:`HandPhysics.step`), never
+    from a cached compiled function: numba's cached code of a caller compiled in a process
+    that loaded its ``parallel=True`` callee from the cache names that callee's threaded
+    kernel as that process numbered it, and crashes the next process that loads it."""
     if not _prepare_step(SRC, U, Y, Y_PREV, FLAGS, DIAG, SKIP):
         return False
     if ros2:
-        if parallel:
-            rosenbrock.advance_batch_parallel(Y, U, PRM, n, H, ch_limit, DIAG, FLAGS)
-        else:
-            rosenbrock.advance_batch_serial(Y, U, PRM, n, H, ch_limit, DIAG, FLAGS)
-    elif parallel:
-        kernel.advance_batch_parallel(Y, U, PRM, n, ch_limit, DIAG, FLAGS)
+        rosenbrock.advance_batch_serial(Y, U, PRM, n, H, ch_limit, DIAG, FLAGS)
     else:
         kernel.advance_batch_serial(Y, U, PRM, n, ch_limit, DIAG, FLAGS)
     _finish_step(FLAGS, Y, Y_PREV, PRM, DIAG, TIME, ch_limit, dn_limit, base_limit, FAILED,
@@ -286,7 +286,7 @@ def _step_on_this_thread(SRC, Y, U, PRM, TIME, n, ros2, H, ch_limit, dn_limit, b
     (what :meth:`HandPhysics.step` does for one hand): :func:`_step_batch` without a skipped
     hand, serial. Returns False, with nothing changed, if SRC is not finite."""
     return _step_batch(SRC, Y, U, PRM, TIME, np.empty_like(Y),
-                       np.zeros(Y.shape[0], dtype=np.bool_), n, ros2, False, H, ch_limit,
+                       np.zeros(Y.shape[0], dtype=np.bool_), n, ros2, H, ch_limit,
                        dn_limit, base_limit, FLAGS, DIAG, FAILED, GRASPED, REASON)
 
 
@@ -677,10 +677,25 @@ class HandPhysics:
             choice = self._dispatch
             parallel = choice is not None and choice.next()
             t0 = time.perf_counter()
-            ok = _step_batch(u, self._y, self._u, self._prm, self._time, self._y_prev,
-                             self._no_skip if skip is None else skip, n, ros2, parallel,
-                             self._ros2_dt, self.ch_limit, self.dn_limit, self.base_limit,
-                             flags, diag, status._failed, status._grasped, status._reason)
+            skipped = self._no_skip if skip is None else skip
+            if parallel:  # three compiled calls (see _step_batch), the same numbers
+                ok = _prepare_step(u, self._u, self._y, self._y_prev, flags, diag, skipped)
+                if ok:
+                    if ros2:
+                        rosenbrock.advance_batch_parallel(self._y, self._u, self._prm, n,
+                                                          self._ros2_dt, self.ch_limit, diag,
+                                                          flags)
+                    else:
+                        kernel.advance_batch_parallel(self._y, self._u, self._prm, n,
+                                                      self.ch_limit, diag, flags)
+                    _finish_step(flags, self._y, self._y_prev, self._prm, diag, self._time,
+                                 self.ch_limit, self.dn_limit, self.base_limit,
+                                 status._failed, status._grasped, status._reason)
+            else:
+                ok = _step_batch(u, self._y, self._u, self._prm, self._time, self._y_prev,
+                                 skipped, n, ros2, self._ros2_dt, self.ch_limit,
+                                 self.dn_limit, self.base_limit, flags, diag, status._failed,
+                                 status._grasped, status._reason)
             if ok and choice is not None:
                 choice.record(parallel, time.perf_counter() - t0,
                               self._n if skip is None else self._n - np.count_nonzero(skip))

@@ -8,6 +8,7 @@ import os
 import re
 import time
 
+import pytest
 from numba.core import caching
 
 from softhand_env.envs import fused
@@ -119,3 +120,64 @@ def test_other_functions_keep_numbas_own_save(tmp_path):
     assert [p.name for p in tmp_path.glob("*.nbc")] == ["f-1.py311.1.nbc"]  # numba's numbering
     assert f.load("key") == "code"
     assert caching.IndexDataCacheFile.save.safe_for == jit_cache.sources_digest()
+
+
+def _functions(text: str) -> dict[str, tuple[str, str]]:
+    """Each top-level compiled function of a module's source: name -> (decorator, body)."""
+    found = {}
+    for m in re.finditer(r"^@njit\(([^)]*)\)\ndef (\w+)\(", text, re.MULTILINE):
+        end = re.search(r"^\S", text[m.end():], re.MULTILINE)
+        body = text[m.end(): m.end() + end.start() if end else len(text)]
+        found[m.group(2)] = (m.group(1), body)
+    return found
+
+
+def test_no_cached_function_calls_a_parallel_one():
+    # numba's cached code of a caller compiled in a process that loaded its parallel=True
+    # callee from the cache names the callee's threaded kernel as that process numbered it:
+    # the next process that loads the caller crashes. The parallel kernels are called from
+    # Python only.
+    functions = {}
+    for name in jit_cache.JIT_MODULES:
+        functions.update(_functions((jit_cache.PACKAGE_DIR / name).read_text()))
+    parallel = {f for f, (deco, _) in functions.items() if "parallel=True" in deco}
+    assert {"advance_batch_parallel"} <= parallel
+    for f, (deco, body) in functions.items():
+        if "cache=True" in deco:
+            called = {p for p in parallel if re.search(rf"\b{p}\(", body)}
+            assert not called, (f, called)
+
+
+@pytest.mark.slow
+def test_a_batched_step_compiled_beside_cached_kernels_loads_in_the_next_process(tmp_path):
+    # a copy of the package with a fresh cache: the first process compiles everything; then
+    # the batched step's cache is removed, so the second compiles it with the kernels loaded
+    # from the cache; the third loads that entry and steps (it crashed, a segmentation fault
+    # at the randomised grasp phase, when the batched step called the parallel kernel itself)
+    import shutil
+    import subprocess
+    import sys
+
+    shutil.copytree(jit_cache.PACKAGE_DIR, tmp_path / "softhand_env",
+                    ignore=shutil.ignore_patterns("__pycache__"))
+    script = ("import gymnasium as gym, softhand_env\n"
+              "v = gym.make_vec('SoftHandPoseRandom-v1', num_envs=4,"
+              " vectorization_mode='vector_entry_point')\n"
+              "v.reset(seed=0)\n"
+              "print(softhand_env.__file__)\n")
+    env = {**os.environ, "PYTHONPATH": str(tmp_path)}
+
+    def run() -> None:
+        out = subprocess.run([sys.executable, "-c", script], env=env, cwd=tmp_path,
+                             capture_output=True, text=True, timeout=900)
+        assert out.returncode == 0, out.stderr[-2000:]
+        assert out.stdout.strip().startswith(str(tmp_path)), out.stdout
+
+    run()
+    batched = list((tmp_path / "softhand_env" / "physics" / "__pycache__").glob(
+        "hand._step_batch-*"))
+    assert batched
+    for p in batched:
+        p.unlink()
+    run()
+    run()
