@@ -178,6 +178,8 @@ VIEW_KEYS = ("history_len", "obs_mode", "onset_obs")
 #: Action keywords in which student and teacher may differ: the teacher acts in the student's
 #: env, so a student with a set-point ramp of its own is labelled by a teacher acting with it.
 ACTUATION_KEYS = ("setpoint_ramp_ms",)
+#: The keywords in which student and teacher may differ besides the reward's.
+PAIR_KEYS = (*VIEW_KEYS, *ACTUATION_KEYS)
 
 
 def check_pair(teacher: ModelPolicy, env_id: str, hp: dict[str, Any],
@@ -208,11 +210,10 @@ def check_pair(teacher: ModelPolicy, env_id: str, hp: dict[str, Any],
     if s_kwargs.get("privileged_obs") or s_kwargs.get("goal_obs"):
         raise UserError("the student reads the plain blind observation: leave privileged_obs "
                         "and goal_obs out of its env_kwargs")
-    t_view = {key: t_kwargs.pop(key) for key in (*VIEW_KEYS, *ACTUATION_KEYS)
-              if key in t_kwargs}
+    t_view = {key: t_kwargs.pop(key) for key in PAIR_KEYS if key in t_kwargs}
     # the rollouts score nothing: a teacher trained on another reward plays the same task
     same_t, same_s = ({k: v for k, v in kwargs.items()
-                       if k not in (*VIEW_KEYS, *ACTUATION_KEYS) and k not in REWARD_KWARGS}
+                       if k not in PAIR_KEYS and k not in REWARD_KWARGS}
                       for kwargs in (t_kwargs, s_kwargs))
     if same_t != same_s:
         raise UserError(f"teacher and student env_kwargs differ (besides privileged_obs, "
@@ -620,7 +621,7 @@ def main(argv: Sequence[str] | None = None) -> Path:
     kwargs, teacher_kwargs = check_pair(teacher, args.env, hp, args.dagger.blind_teacher)
     wrapper = config.env_wrapper
     rec.env_signature = probe_signature(args.env, kwargs, wrapper, args.seed)
-    plain = {k: v for k, v in kwargs.items() if k not in (*VIEW_KEYS, *ACTUATION_KEYS)}
+    plain = {k: v for k, v in kwargs.items() if k not in PAIR_KEYS}
     privileged = {} if args.dagger.blind_teacher else {"privileged_obs": True}
     teacher_env = make_env(args.env, {**plain, **teacher_kwargs, **privileged},
                            teacher.env_wrapper)  # the spaces of the teacher's view
