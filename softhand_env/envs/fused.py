@@ -9,7 +9,8 @@ twentieth of a ROS2 control step)::
                                   latency the ones commanded L steps ago,
                                   envs.actions.delay_setpoints)
            -> physics step        (physics.HandPhysics.step for one hand), or the pieces
-                                  of the slip windows (envs.windows.SlipWindows.step)
+                                  of the slip windows, cut at a set-point ramp's stairs
+                                  (envs.windows.SlipWindows.step)
            -> contact check       (physics.friction.check_contact)
            -> read-outs           (physics.hand.fill_readouts)
            -> validated box       (physics.validity.validated_rows)
@@ -102,8 +103,8 @@ def observe_read(READ, tactile, OBS):
 def control_step(A, PREV, READ, ros2, H, kind, max_delta, mid, half, low, high, CMD, CTRL,
                  SENT, LATENCY, APPLIED, Y, U, PRM, TIME, n, ch_limit, dn_limit, base_limit,
                  FLAGS, DIAG, FAILED, GRASPED, REASON, MU, NO_SKIP,
-                 window, stop, LEFT, WIN_IMPULSE, ACTIVE, DONE, SUB,
-                 OUT_FLAGS, OUT_ERROR, OUT_FAILED, OUT_GRASPED, OUT_REASON,
+                 window, stop, LEFT, WIN_IMPULSE, ACTIVE, DONE, SUB, ramp, stair, START,
+                 TARGET, OUT_FLAGS, OUT_ERROR, OUT_FAILED, OUT_GRASPED, OUT_REASON,
                  IMPULSE, RATIO, TENSION, CONTACT,
                  RADIUS, VALIDATED, observe, tactile, OBS, frame, history,
                  score, GOAL, INDEX, TOLERANCE, SCALE, WEIGHTS, FAILED_ONE, TERMS, SUCCESS,
@@ -122,8 +123,11 @@ def control_step(A, PREV, READ, ros2, H, kind, max_delta, mid, half, low, high, 
     FLAGS, DIAG, FAILED, GRASPED, REASON (:class:`~softhand_env.physics.StepStatus`'
     arrays). ``window`` > 0: slip windows of that many substeps (``stop``: a bad window ends
     the step; LEFT, WIN_IMPULSE the :class:`~softhand_env.envs.windows.SlipWindows` state;
-    ACTIVE, DONE, SUB scratch), else the contact check of the step against MU (NO_SKIP all
-    False). The step's outcome: OUT_FLAGS, OUT_ERROR (1, 2), OUT_FAILED, OUT_GRASPED,
+    ACTIVE, DONE, SUB scratch; ``ramp`` > 0: the set-points move from the physics' current
+    ones to the command over the first ``ramp`` substeps in stairs of ``stair`` substeps, as
+    :meth:`~softhand_env.envs.windows.SlipWindows.step` moves them, START and TARGET (1, 2)
+    scratch), else the contact check of the step against MU (NO_SKIP all False). The step's
+    outcome: OUT_FLAGS, OUT_ERROR (1, 2), OUT_FAILED, OUT_GRASPED,
     OUT_REASON (failure code), IMPULSE (1, 4) (N s), RATIO (1, 2), TENSION (1, 2), CONTACT
     (1,) (slip or tension). Read-outs into READ (1, ``READ_SIZE`` of
     :mod:`softhand_env.physics.hand`), the validated box (fingertip radius RADIUS (1,)) into
@@ -154,12 +158,22 @@ def control_step(A, PREV, READ, ros2, H, kind, max_delta, mid, half, low, high, 
         CONTACT[0] = False
         ACTIVE[0] = True
         DONE[0] = 0
+        START[0, 0] = U[0, 0]
+        START[0, 1] = U[0, 1]
         while True:  # SlipWindows.step for one hand
             piece = min(n - DONE[0], LEFT[0])
+            PIECE_SRC = SRC
+            if ramp > 0 and DONE[0] < ramp:  # cut at the stair ends; a stair's share
+                piece = min(piece, stair - DONE[0] % stair)
+                share = min((DONE[0] // stair + 1) * stair / ramp, 1.0)
+                if share < 1.0:
+                    for j in range(2):
+                        TARGET[0, j] = START[0, j] + (SRC[0, j] - START[0, j]) * share
+                    PIECE_SRC = TARGET
             if not (ACTIVE[0] and piece > 0):
                 break
-            _step_on_this_thread(SRC, Y, U, PRM, TIME, piece, ros2, H, ch_limit, dn_limit,
-                                 base_limit, FLAGS, DIAG, FAILED, GRASPED, REASON)
+            _step_on_this_thread(PIECE_SRC, Y, U, PRM, TIME, piece, ros2, H, ch_limit,
+                                 dn_limit, base_limit, FLAGS, DIAG, FAILED, GRASPED, REASON)
             OUT_FAILED[0] = FAILED[0]
             OUT_GRASPED[0] = GRASPED[0]
             OUT_REASON[0] = REASON[0]
@@ -365,7 +379,8 @@ ARGUMENT_FIELDS = (
     "APPLIED", "Y", "U", "PRM", "TIME", "n", "ch_limit", "dn_limit", "base_limit", "FLAGS",
     "DIAG", "FAILED", "GRASPED", "REASON",
     "MU", "NO_SKIP", "window", "stop", "LEFT", "WIN_IMPULSE", "ACTIVE", "DONE", "SUB",
-    "OUT_FLAGS", "OUT_ERROR", "OUT_FAILED", "OUT_GRASPED", "OUT_REASON", "IMPULSE", "RATIO",
+    "ramp", "stair", "START", "TARGET", "OUT_FLAGS", "OUT_ERROR", "OUT_FAILED", "OUT_GRASPED",
+    "OUT_REASON", "IMPULSE", "RATIO",
     "TENSION", "CONTACT", "RADIUS", "VALIDATED", "observe", "tactile", "OBS", "frame",
     "history", "score", "GOAL", "INDEX", "TOLERANCE", "SCALE", "WEIGHTS", "FAILED_ONE",
     "TERMS", "SUCCESS", "REWARD", "ROW",
@@ -377,8 +392,9 @@ structref.define_proxy(Arguments, _ArgumentsType, list(ARGUMENT_FIELDS))
 def pack_arguments(kind, max_delta, mid, half, low, high, CMD, CTRL, SENT, LATENCY, APPLIED,
                    Y, U, PRM, TIME, n,
                    ch_limit, dn_limit, base_limit, FLAGS, DIAG, FAILED, GRASPED, REASON, MU,
-                   NO_SKIP, window, stop, LEFT, WIN_IMPULSE, ACTIVE, DONE, SUB, OUT_FLAGS,
-                   OUT_ERROR, OUT_FAILED, OUT_GRASPED, OUT_REASON, IMPULSE, RATIO, TENSION,
+                   NO_SKIP, window, stop, LEFT, WIN_IMPULSE, ACTIVE, DONE, SUB, ramp, stair,
+                   START, TARGET, OUT_FLAGS, OUT_ERROR, OUT_FAILED, OUT_GRASPED, OUT_REASON,
+                   IMPULSE, RATIO, TENSION,
                    CONTACT, RADIUS, VALIDATED, observe, tactile, OBS, frame, history,
                    score, GOAL, INDEX, TOLERANCE, SCALE, WEIGHTS, FAILED_ONE, TERMS, SUCCESS,
                    REWARD, ROW):
@@ -387,8 +403,9 @@ def pack_arguments(kind, max_delta, mid, half, low, high, CMD, CTRL, SENT, LATEN
     return Arguments(kind, max_delta, mid, half, low, high, CMD, CTRL, SENT, LATENCY, APPLIED,
                      Y, U, PRM, TIME, n,
                      ch_limit, dn_limit, base_limit, FLAGS, DIAG, FAILED, GRASPED, REASON, MU,
-                     NO_SKIP, window, stop, LEFT, WIN_IMPULSE, ACTIVE, DONE, SUB, OUT_FLAGS,
-                     OUT_ERROR, OUT_FAILED, OUT_GRASPED, OUT_REASON, IMPULSE, RATIO, TENSION,
+                     NO_SKIP, window, stop, LEFT, WIN_IMPULSE, ACTIVE, DONE, SUB, ramp,
+                     stair, START, TARGET, OUT_FLAGS, OUT_ERROR, OUT_FAILED, OUT_GRASPED,
+                     OUT_REASON, IMPULSE, RATIO, TENSION,
                      CONTACT, RADIUS, VALIDATED, observe, tactile, OBS, frame, history,
                      score, GOAL, INDEX, TOLERANCE, SCALE, WEIGHTS, FAILED_ONE, TERMS, SUCCESS,
                      REWARD, ROW)
@@ -403,7 +420,8 @@ def control_step_packed(A, PREV, READ, ros2, H, S):
                         S.PRM, S.TIME, S.n, S.ch_limit,
                         S.dn_limit, S.base_limit, S.FLAGS,
                         S.DIAG, S.FAILED, S.GRASPED, S.REASON, S.MU, S.NO_SKIP, S.window,
-                        S.stop, S.LEFT, S.WIN_IMPULSE, S.ACTIVE, S.DONE, S.SUB, S.OUT_FLAGS,
+                        S.stop, S.LEFT, S.WIN_IMPULSE, S.ACTIVE, S.DONE, S.SUB, S.ramp,
+                        S.stair, S.START, S.TARGET, S.OUT_FLAGS,
                         S.OUT_ERROR, S.OUT_FAILED, S.OUT_GRASPED, S.OUT_REASON, S.IMPULSE,
                         S.RATIO, S.TENSION, S.CONTACT, S.RADIUS, S.VALIDATED, S.observe,
                         S.tactile, S.OBS, S.frame, S.history, S.score, S.GOAL, S.INDEX,

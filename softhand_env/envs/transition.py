@@ -197,9 +197,8 @@ class EpisodeBatch:
         if not cfg.sensors.ideal:
             self.sensing = SensorState(cfg.sensors, n, cfg.dt, cfg.layout.tactile,
                                        cfg.rand_sensors)
-        # one episode steps in one compiled call (:mod:`.fused`; a set-point ramp through
-        # the batched path, its pieces cut at the stairs)
-        self._fused = n == 1 and cfg.setpoint_ramp == 0
+        # one episode steps in one compiled call (:mod:`.fused`)
+        self._fused = n == 1
         self._applied = np.empty((n, 2))
         self._cmd = np.empty((n, 2))
         self._ctrl = np.empty(n)
@@ -487,7 +486,8 @@ class EpisodeBatch:
             p.ch_limit, p.dn_limit, p.base_limit,
             *self._status.arrays(), self.mu, self._no_skip,
             0 if self.windows is None else win.window, cfg.terminate_on_slip, win.left,
-            win.impulse, self._active, self._done, self._substeps,
+            win.impulse, self._active, self._done, self._substeps, cfg.setpoint_ramp,
+            max(cfg.ramp_stair, 1), np.empty((1, 2)), np.empty((1, 2)),
             self.flags, self.constraint_error, self._failed, self.grasped, self._ending,
             self.contact_impulse, self.friction_ratio, self.tension, self._bad,
             self.radius, self.validated, self.sensing is None, layout.tactile, self.obs,

@@ -20,6 +20,10 @@ CASES = [
     ("SoftHandPoseRandom-v0", {}),  # set-point latency, observation noise
     ("SoftHandPoseRandom-v1", {"setpoint_latency": 3}),
     ("SoftHandPose-v0", {"terminate_on_success": True}),
+    # a set-point ramp over a longer control step (pieces cut at the stairs), with latency
+    ("SoftHandPoseRandom-v1", {"control_dt": 0.16, "max_delta_deg": 8.0,
+                               "setpoint_ramp_ms": 80.0}),
+    ("SoftHandPose-v1", {"control_dt": 0.05, "setpoint_ramp_ms": 30.0}),
 ]
 
 
