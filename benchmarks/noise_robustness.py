@@ -87,9 +87,10 @@ ROWS: dict[str, Row] = {
                        "SoftHandPoseRandom-v0", "SoftHandPoseRandom-v1"),
     "pose-random-v1": Row("PoseRandom, teacher-student, fingertips (v1 model)", "model",
                           "SoftHandPoseRandom-v1", "SoftHandPoseRandom-v1"),
-    "pose-random-v1-onset": Row("PoseRandom, joints only and the grasp onset (v1 model)",
-                                "model", "SoftHandPoseRandom-v1_proprio_onset",
-                                "SoftHandPoseRandom-v1"),
+    "pose-random-v1-proprio": Row("PoseRandom, joints only, the grasp onset and an 80 ms "
+                                  "set-point ramp (v1 model)", "model",
+                                  "SoftHandPoseRandom-v1_proprio_ramp",
+                                  "SoftHandPoseRandom-v1"),
     "loop-plan": Row("Pose, loop plan (scripted)", "policy", "loop-plan", "SoftHandPose-v1"),
 }
 

@@ -42,8 +42,7 @@ COMMON = ["--seed", "10000", "--no-plots"]
 N_GOALS = {"SoftHandPose-v0": 300, "SoftHandPoseRandom-v0": 300,
            **{f"SoftHand{task}-v1": 300 for task in ("Translate", "Reorient", "Pose",
                                                     "ReorientRandom", "PoseRandom")},
-           "SoftHandTranslate-v1_finetuned": 300, "SoftHandPoseRandom-v1_proprio": 300,
-           "SoftHandPoseRandom-v1_proprio_onset": 300, "SoftHandPose-v1_proprio": 300,
+           "SoftHandTranslate-v1_finetuned": 300, "SoftHandPose-v1_proprio": 300,
            "SoftHandPoseRandom-v1_proprio_ramp": 300}
 
 #: shipped model name -> (env id, lowest success rate, error keys, baselines it must beat,
@@ -66,8 +65,8 @@ TARGETS = {
     # targets of benchmark v1; measured on 300 goals: Translate 300/300, Reorient 300/300,
     # Pose 300/300 (strict 278/300; joint-only Pose 292/300), ReorientRandom 296/300,
     # PoseRandom 295/300 (strict 241/300, no physical failure), PoseRandom without
-    # fingertips 276/300, with the grasp onset 292/300, with the onset and an 80 ms
-    # set-point ramp 288/300 and no physical failure (docs/results.md)
+    # fingertips (the grasp onset and an 80 ms set-point ramp) 288/300 and no physical
+    # failure (docs/results.md)
     # Translate-v1's default model (trained from scratch) reaches 100 % like the model-based
     # baseline but not its median final error (0.177 against 0.117 mm on these goals), so it
     # is held to the floor only; the model fine-tuned from -v0 beats the baseline (0.074 mm)
@@ -86,15 +85,9 @@ TARGETS = {
     "SoftHandPoseRandom-v1": ("SoftHandPoseRandom-v1", 0.95,
                               ["median_x_mm", "median_theta_deg"],
                               ["model-based", "loop-plan"], 0.0),
-    # the student without fingertip sensing (joints and torques only): target 85 %
-    "SoftHandPoseRandom-v1_proprio": ("SoftHandPoseRandom-v1", 0.85,
-                                      ["median_x_mm", "median_theta_deg"],
-                                      ["model-based", "loop-plan"], 0.0),
-    # the same with the joint angles where the grasp began (onset_obs; 292/300 measured)
-    "SoftHandPoseRandom-v1_proprio_onset": ("SoftHandPoseRandom-v1", 0.85,
-                                            ["median_x_mm", "median_theta_deg"],
-                                            ["model-based", "loop-plan"], 0.0),
-    # the same with an 80 ms set-point ramp (setpoint_ramp_ms; 288/300 measured)
+    # the student without fingertip sensing (joints, torques and the joint angles where the
+    # grasp began, onset_obs) with an 80 ms set-point ramp (setpoint_ramp_ms): target 85 %,
+    # 288/300 measured
     "SoftHandPoseRandom-v1_proprio_ramp": ("SoftHandPoseRandom-v1", 0.85,
                                            ["median_x_mm", "median_theta_deg"],
                                            ["model-based", "loop-plan"], 0.0),
@@ -110,19 +103,13 @@ TARGETS_V1 = {
     "SoftHandPose-v1_proprio": (None, None),
     "SoftHandReorientRandom-v1": (None, None),
     "SoftHandPoseRandom-v1": (0.92, 0.80),
-    "SoftHandPoseRandom-v1_proprio": (None, None),
-    "SoftHandPoseRandom-v1_proprio_onset": (None, None),
     "SoftHandPoseRandom-v1_proprio_ramp": (None, None),
 }
 
 #: (model, criterion) pairs measured below their target (docs/results.md): they fail until a
 #: model meets the target (strict xfail, so a model that meets it turns them into errors to
 #: be recorded here).
-UNMET_V1 = {
-    ("SoftHandPoseRandom-v1_proprio", "failures"): "12 over-compressed and 5 slip endings in "
-                                                   "300",
-    ("SoftHandPoseRandom-v1_proprio_onset", "failures"): "2 slip endings in 300",
-}
+UNMET_V1: dict[tuple[str, str], str] = {}
 
 
 @functools.cache

@@ -44,13 +44,8 @@ SHIPPED = {
     "SoftHandPose-v1_proprio": 0.8,  # joints only: 10/10 here; 97.3 % on 300 test goals
     # 10/10 here (98.3 % on 300 test goals): two goals of margin as for Pose
     "SoftHandPoseRandom-v1": 0.8,
-    # joints and torques only, distilled from the fingertip student: 8/10 here (91.7 % on 300
-    # test goals), two goals of margin; the earlier fine-tuned one: 9/10 (89.3 %)
-    "SoftHandPoseRandom-v1_proprio": 0.6,
-    "SoftHandPoseRandom-v1_proprio_finetuned": 0.7,
-    # the same with the grasp onset (onset_obs): 10/10 here (97.3 % on 300 test goals)
-    "SoftHandPoseRandom-v1_proprio_onset": 0.8,
-    # the same with an 80 ms set-point ramp: 9/10 here (96.0 % on 300 test goals)
+    # joints, torques and the grasp onset, no fingertips, distilled from the fingertip student
+    # with an 80 ms set-point ramp: 9/10 here (96.0 % on 300 test goals), two goals of margin
     "SoftHandPoseRandom-v1_proprio_ramp": 0.7,
 }
 
