@@ -12,8 +12,9 @@ wrappers' features) and learns to act as the teacher would, by DAgger (Ross et a
 2. label every visited state with the teacher's deterministic action (from the privileged
    observation of that state) and add (blind observation, label) to the data set;
 3. fit the student's mean action to the labels (mean squared error, or with
-   ``--squeeze-expectile`` an expectile of the squeeze component, :func:`imitation_loss`;
-   Adam, the step size goes linearly from ``--lr`` to ``--lr-final``), then validate the
+   ``--squeeze-expectile`` an expectile of the squeeze component,
+   :func:`~agents.sb3.imitation.imitation_loss`; Adam, the step size goes linearly from
+   ``--lr`` to ``--lr-final``), then validate the
    student alone on the validation goals (``reset(seed=eval_seed + k)``, the benchmark's
    success rule) and keep the best iteration (``--select``: by success rate, then median final
    error; or by success rate, then the strict rate within 0.5 mm / 0.5 deg, then median final
@@ -22,15 +23,17 @@ wrappers' features) and learns to act as the teacher would, by DAgger (Ross et a
 
 The student may read more than the teacher's blind observation: a longer history of frames
 (``history_len``), the fingertips' tactile entries (``obs_mode: proprio_tactile``) and the
-features of further wrappers after the teacher's (e.g. :mod:`agents.wrappers.action_history`). The
-teacher then reads its part of each student observation (:func:`teacher_view`), so a student
-can learn to infer from the recent past or its fingertips what the teacher reads in its
+features of further wrappers after the teacher's (e.g. :mod:`agents.wrappers.action_history`).
+The teacher then reads its part of each student observation
+(:func:`~agents.sb3.imitation.teacher_view`), so a student can learn to infer from the recent
+past or its fingertips what the teacher reads in its
 privileged observation (e.g. the randomised parameters of the episode).
 
 With ``--blind-teacher`` the teacher is itself a blind policy (a distilled student, e.g. one
 that reads its fingertips) and the student may read *less* than it: the rollouts run the union
-of both observations (:func:`rollout_layout`) and each policy reads its own part
-(:func:`blind_view`), so a student without fingertip sensing can imitate one with it.
+of both observations (:func:`~agents.sb3.imitation.rollout_layout`) and each policy reads its
+own part (:func:`~agents.sb3.imitation.blind_view`), so a student without fingertip sensing
+can imitate one with it.
 
 Nothing of the teacher is in the student's inputs or outputs: at play time the student is a
 plain blind policy. The result is saved as a run in the layout of :mod:`agents.train` (a PPO
@@ -58,16 +61,21 @@ from agents.common.cli import UserError, check_run_location, run_cli
 from agents.common.env_factory import make_env, task_targets, wrapper_list
 from agents.common.metrics import (
     error_score,
-    final_errors,
-    is_failure,
-    strict_success,
-    summarize,
     summary_success_text,
 )
 from agents.runs.loading import ModelPolicy
 from agents.runs.model_files import sha256
 from agents.runs.records import SELECT_RULES, DaggerSchedule, DistillOutcome, EvalSettings
 from agents.runs.writing import write_args, write_run_config
+from agents.sb3.imitation import (
+    BLIND_KEY,
+    blind_view,
+    imitation_loss,
+    rollout_layout,
+    teacher_view,
+    validate,
+    view_layout,
+)
 from agents.sb3.interrupts import DeferredSignals, Interrupted
 from agents.sb3.native_vec_env import make_sb3_vec_env
 from agents.sb3.policies import mean_action as student_mean
@@ -80,14 +88,10 @@ from agents.sb3.training import (
     next_run_dir,
     probe_signature,
     resolve_config,
-    rewind_validation,
     start_from,
 )
-from softhand_env.envs.observation import ObservationLayout
 from softhand_env.envs.tasks import REWARD_KWARGS
 
-#: Dict-observation key of the blind part (what the student reads).
-BLIND_KEY = "observation"
 #: Options of agents.train that DAgger has no use for (refused unless left at their default).
 NOT_APPLICABLE = ("--n-timesteps", "--vec-env", "--eval-freq", "--save-freq")
 
@@ -239,95 +243,6 @@ def check_pair(teacher: ModelPolicy, env_id: str, hp: dict[str, Any],
     return s_kwargs, t_view
 
 
-def view_layout(kwargs: dict[str, Any]) -> ObservationLayout:
-    """The frame layout (grasp-onset entries included, goal entries left out) of env keywords
-    ``kwargs``."""
-    return ObservationLayout(kwargs.get("obs_mode", "proprio"), kwargs.get("history_len", 1), (),
-                             onset=bool(kwargs.get("onset_obs", False)))
-
-
-def teacher_view(obs: dict[str, np.ndarray], teacher: ObservationLayout,
-                 student: ObservationLayout, teacher_size: int | None = None
-                 ) -> dict[str, np.ndarray]:
-    """The teacher's Dict observation from the student env's.
-
-    The blind part, (B, student.history_size + rest), keeps the newest ``teacher.history_len``
-    frames (frames are newest first), of each frame its first ``teacher.frame_size`` entries
-    (the proprio entries precede the tactile ones), the grasp-onset entries if the teacher
-    reads them (``onset_obs``), and what follows (goal, wrapper features) up to the teacher's
-    blind size ``teacher_size`` (all of it when None: the features of wrappers the student has
-    beyond the teacher's come last); the other keys are shared.
-    """
-    blind = obs[BLIND_KEY]
-    view = blind_view(blind, teacher, student, teacher_size)
-    return obs if view is blind else {**obs, BLIND_KEY: view}
-
-
-def blind_view(blind: np.ndarray, view: ObservationLayout, source: ObservationLayout,
-               size: int | None = None) -> np.ndarray:
-    """The blind observation of layout ``view`` (blind size ``size``) contained in ``blind``,
-    one of layout ``source`` (:func:`teacher_view`'s rule; ``blind`` itself when they are the
-    same)."""
-    if view.onset and not source.onset:
-        raise ValueError("the view reads the grasp-onset entries, its source has none")
-    same_frames = (view.history_len, view.frame_size, view.onset) == (
-        source.history_len, source.frame_size, source.onset)
-    if same_frames and size in (None, blind.shape[-1]):
-        return blind
-    lead = blind.shape[:-1]
-    frames = blind[..., : source.history_size].reshape(*lead, source.history_len,
-                                                        source.frame_size)
-    kept = frames[..., : view.history_len, : view.frame_size].reshape(*lead, view.history_size)
-    onset = blind[..., source.history_size: source.history_size + view.onset_size]
-    rest = blind[..., source.blind_size:]
-    if size is not None:
-        rest = rest[..., : size - view.blind_size]
-    return np.concatenate([kept, onset, rest], axis=-1)
-
-
-def rollout_layout(student: ObservationLayout, teacher: ObservationLayout,
-                   blind_teacher: bool) -> ObservationLayout:
-    """The frame layout the DAgger rollouts run: the student's, or with a blind teacher the
-    union of both (the longer history; tactile and grasp-onset entries if either reads them),
-    from which each
-    policy reads its own view (:func:`blind_view`)."""
-    if not blind_teacher:
-        return student
-    frames = student if student.tactile or not teacher.tactile else teacher
-    return view_layout({"obs_mode": frames.obs_mode,
-                        "history_len": max(student.history_len, teacher.history_len),
-                        "onset_obs": student.onset or teacher.onset})
-
-
-def validate(model: Any, venv: Any, targets: Sequence[str], eval_seed: int,
-             stop: DeferredSignals | None = None) -> dict[str, float]:
-    """Success, strict success (``success_strict``, within 0.5 mm / 0.5 deg), the rate of
-    episodes ended by a physical failure (``failure_rate``) and final errors
-    of the deterministic student on goals ``eval_seed + k`` (env k of the native SB3 vector env
-    ``venv``, re-seeded here; the first episode of each). ``stop``: checked before every step
-    (:class:`~agents.sb3.interrupts.Interrupted` once a signal was received)."""
-    n_eval = venv.num_envs
-    rewind_validation(venv, eval_seed)
-    obs = venv.reset()
-    finished: dict[int, dict[str, Any]] = {}
-    while len(finished) < n_eval:
-        if stop is not None:
-            stop.check()
-        action, _ = model.predict(obs, deterministic=True)
-        obs, _, dones, infos = venv.step(action)
-        for i in np.flatnonzero(dones):
-            finished.setdefault(int(i), infos[i])
-    infos = [finished[i] for i in range(n_eval)]
-    successes = [bool(info.get("is_success", False)) for info in infos]
-    errors = [final_errors(info, targets) for info in infos]
-    summary = summarize(targets, successes, errors)
-    summary["success_strict"] = float(np.mean(
-        [strict_success(ok, err, targets) for ok, err in zip(successes, errors, strict=True)]))
-    summary["failure_rate"] = float(np.mean(
-        [is_failure(info.get("termination_reason")) for info in infos]))
-    return summary
-
-
 def iteration_rank(summary: dict[str, float], targets: Sequence[str],
                    select: str) -> tuple[float, ...]:
     """The rank of a validated iteration under ``select`` (larger is better;
@@ -420,31 +335,6 @@ def minibatches(n: int, schedule: DaggerSchedule) -> Iterator[Any]:
         perm = torch.randperm(n)
         for start in range(0, n, b):
             yield perm[start:start + b]
-
-
-def imitation_loss(pred: Any, label: Any, squeeze_expectile: float = 0.5) -> Any:
-    """The DAgger fit's loss (torch scalar) of the student's mean actions ``pred`` against the
-    teacher's ``label`` (torch (B, act_dim), the normalised action space).
-
-    With ``squeeze_expectile`` tau = 0.5 the mean squared error. Otherwise the two-finger
-    action is written in the orthonormal (rotate, squeeze) coordinates r = (a_1 - a_2) / sqrt 2,
-    s = (a_1 + a_2) / sqrt 2 (s > 0 closes both fingers; the finger actions share one range)
-    and the squeeze error u = s_label - s_pred is weighted 2 tau where u >= 0 (the student
-    closes less than the label) and 2 (1 - tau) where u < 0 (it closes more): the minimiser is
-    the tau-expectile of the labels' squeeze in a state, which for tau < 0.5 lies below their
-    mean where states the student cannot tell apart carry different labels, and equals the
-    label where they do not. The rotate error is squared as is; the sum is divided by
-    ``act_dim`` like the mean squared error, which tau = 0.5 reproduces exactly."""
-    err = label - pred
-    if squeeze_expectile == 0.5:
-        return (err ** 2).mean()
-    if err.shape[-1] != 2:
-        raise UserError(f"--squeeze-expectile needs the two-finger action (got {err.shape[-1]} "
-                        "action components)")
-    rotate = (err[:, 0] - err[:, 1]) / 2 ** 0.5
-    squeeze = (err[:, 0] + err[:, 1]) / 2 ** 0.5
-    weight = 2 * (squeeze_expectile * (squeeze >= 0) + (1 - squeeze_expectile) * (squeeze < 0))
-    return (rotate ** 2 + weight * squeeze ** 2).mean() / 2
 
 
 def lr_at(k: int, iterations: int, lr: float, lr_final: float) -> float:

@@ -1,4 +1,4 @@
 """Stable-Baselines3 pieces: the batched env as an SB3 ``VecEnv`` (:mod:`.native_vec_env`),
 the asymmetric / blind-actor policies (:mod:`.policies`), the goal curriculum
-(:mod:`.curriculum`) and the training library that ``agents.train`` and ``agents.distill``
-share (:mod:`.training`)."""
+(:mod:`.curriculum`), the training library that ``agents.train`` and ``agents.distill``
+share (:mod:`.training`) and what every distilled student shares (:mod:`.imitation`)."""

@@ -14,6 +14,7 @@ import yaml
 from agents import distill, train
 from agents.common.cli import UserError
 from agents.runs.loading import ModelPolicy
+from agents.sb3 import imitation
 from agents.sb3.native_vec_env import make_sb3_vec_env
 from softhand_env.cli import CliError
 
@@ -129,8 +130,8 @@ def test_teacher_and_student_must_match(tmp_path, teacher, monkeypatch):
     with pytest.raises(UserError, match="privileged_obs: true"):  # a student is no teacher
         distill.main(_student_args(tmp_path, student))
     # a warm start from that student, stopped by its first validation (reported as 100 %)
-    real = distill.summarize
-    monkeypatch.setattr(distill, "summarize",
+    real = imitation.summarize
+    monkeypatch.setattr(imitation, "summarize",
                         lambda *a, **k: {**real(*a, **k), "success_rate": 1.0})
     again = distill.main(args + ["--trained-agent", str(student), "--stop-success", "0.9"])
     record = ModelPolicy(again).run.record

@@ -262,7 +262,7 @@ def test_the_tree_is_read(modules):
     assert "agents.evaluate" in modules["agents.demo"].imports
     assert "softhand_env.physics.hand" in modules["softhand_env.envs.transition"].load_time
     assert {"train", "distill", "evaluate", "demo", "pose_figures", "learning_curves",
-            "bench_train", "rllib_train", "collect", "bc"} == {c.split(".")[1]
+            "bench_train", "rllib_train", "collect", "bc", "recurrent_distill"} == {c.split(".")[1]
                                                             for c in commands(modules)}
 
 
