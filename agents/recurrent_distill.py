@@ -50,6 +50,7 @@ from agents.runs.loading import ModelPolicy
 from agents.runs.model_files import sha256
 from agents.runs.records import EvalSettings
 from agents.sb3 import imitation
+from agents.sb3.interrupts import DeferredSignals, Interrupted
 from agents.sb3.native_vec_env import make_sb3_vec_env
 from agents.sb3.training import make_validation_env
 
@@ -186,13 +187,16 @@ def student_kwargs(teacher: ModelPolicy, items: Sequence[str]) -> dict[str, Any]
 
 
 def fit_iteration(net: Any, opt: Any, xs: Sequence[np.ndarray], ys: Sequence[np.ndarray],
-                  a: argparse.Namespace, rng: np.random.Generator) -> float:
+                  a: argparse.Namespace, rng: np.random.Generator,
+                  stop: DeferredSignals | None = None) -> float:
     """``a.updates`` Adam steps on minibatches of ``a.batch_episodes`` whole episodes drawn
-    with replacement; returns the last loss."""
+    with replacement (``stop`` checked before each); returns the last loss."""
     import torch
 
     loss = torch.zeros(())
     for _ in range(a.updates):
+        if stop is not None:
+            stop.check()
         idx = rng.integers(len(xs), size=min(a.batch_episodes, len(xs)))
         x, y, mask = episode_batch([xs[j] for j in idx], [ys[j] for j in idx])
         pred, _ = net(torch.as_tensor(x))
@@ -222,10 +226,10 @@ def train(a: argparse.Namespace) -> dict[str, Any]:
     r_kwargs = {**s_kwargs, "privileged_obs": True, "obs_mode": r_layout.obs_mode,
                 "history_len": r_layout.history_len, "onset_obs": r_layout.onset}
     wrapper = teacher.env_wrapper
-    venv = make_sb3_vec_env(env_id, a.n_envs, a.seed, r_kwargs, "native", env_wrapper=wrapper)
     if not isinstance(teacher.model.observation_space, gym.spaces.Box):
         raise UserError("the teacher must be a blind policy (a Box observation, not the "
                         "privileged Dict one)")
+    venv = make_sb3_vec_env(env_id, a.n_envs, a.seed, r_kwargs, "native", env_wrapper=wrapper)
     t_size = int(teacher.model.observation_space.shape[0])
     eval_env = make_validation_env(env_id, s_kwargs, wrapper, "native", EvalSettings(
         0, a.eval_episodes, a.eval_seed, success_kwargs(env_id), None))
@@ -245,49 +249,24 @@ def train(a: argparse.Namespace) -> dict[str, Any]:
     best: tuple[tuple[float, ...], dict[str, Any], dict[str, Any]] | None = None
     t0 = time.time()
     obs: Any = venv.reset()
-    for k in range(a.iterations):
-        for group in opt.param_groups:
-            group["lr"] = a.lr + (a.lr_final - a.lr) * k / max(a.iterations - 1, 1)
-        for _ in range(steps):
-            t_obs = imitation.teacher_view(obs, t_layout, r_layout, t_size)[imitation.BLIND_KEY]
-            t_act, _ = teacher.model.predict(teacher.normalize(t_obs), deterministic=True)
-            x = imitation.blind_view(obs[imitation.BLIND_KEY], s_layout, r_layout, None)
-            x = x.astype(np.float32)
-            s_act = player.act(x)
-            use_teacher = rng.random(a.n_envs) < 0.5 ** k
-            obs, _, dones, _ = venv.step(np.where(use_teacher[:, None], t_act, s_act))
-            label = np.clip(np.asarray(t_act, dtype=np.float32), -1.0, 1.0)
-            for i in range(a.n_envs):
-                open_x[i].append(x[i])
-                open_y[i].append(label[i])
-                if dones[i]:
-                    xs.append(np.stack(open_x[i]))
-                    ys.append(np.stack(open_y[i]))
-                    open_x[i], open_y[i] = [], []
-            if dones.any():
-                player.clear(np.flatnonzero(dones))
-        loss = fit_iteration(net, opt, xs, ys, a, rng)
-        point: dict[str, Any] = {"iteration": k, "episodes": len(xs), "loss": loss,
-                                 "wall_s": round(time.time() - t0, 1)}
-        if (k + 1) % a.eval_every == 0 or k == a.iterations - 1:
-            summary = imitation.validate(RecurrentPlayer(net, a.eval_episodes), eval_env,
-                                         targets, a.eval_seed)
-            point.update(success_rate=summary["success_rate"],
-                         success_strict=summary["success_strict"],
-                         failure_rate=summary["failure_rate"])
-            rank = ((summary["success_rate"], summary["success_strict"]) if a.select == "success"
-                    else (summary["success_strict"], summary["success_rate"]))
-            if best is None or rank > best[0]:
-                best = (rank, {**summary, "iteration": k},
-                        {key: v.clone() for key, v in net.state_dict().items()})
-        curve.append(point)
-        print(" ".join(f"{key} {v:.4g}" if isinstance(v, float) else f"{key} {v}"
-                       for key, v in point.items()), flush=True)
+    stop = DeferredSignals("recurrent distillation")
+    interrupted: str | None = None
+    with stop.installed():
+        try:
+            for k in range(a.iterations):
+                obs, best = _iteration(k, a, stop, net, opt, player, teacher, venv, obs,
+                                       eval_env, (s_layout, t_layout, r_layout), t_size,
+                                       targets, steps, (xs, ys, open_x, open_y), rng, curve,
+                                       best, t0)
+        except Interrupted as exc:
+            interrupted = str(exc)
+            print(f"{interrupted}: stopped in iteration {len(curve)}; saving the student",
+                  flush=True)
     venv.close()
     eval_env.close()
-    assert best is not None  # the last iteration is always validated
     out.mkdir(parents=True)
-    torch.save(best[2], out / "student.pt")
+    kept = best[2] if best is not None else net.state_dict()  # none validated: current
+    torch.save(kept, out / "student.pt")
     record = {
         "env_id": env_id, "env_kwargs": s_kwargs, "env_wrapper": wrapper, "d_in": d_in,
         "hidden": a.hidden,
@@ -296,14 +275,74 @@ def train(a: argparse.Namespace) -> dict[str, Any]:
             "iterations", "n_envs", "updates", "batch_episodes", "lr", "lr_final",
             "squeeze_expectile", "eval_every", "eval_episodes", "eval_seed", "select", "seed")},
         "wall_time_s": round(time.time() - t0, 1),
-        "best_validation": {key: float(v) for key, v in best[1].items()},
+        "interrupted": interrupted is not None,
+        "best_validation": None if best is None else {
+            key: float(v) for key, v in best[1].items()},
         "curve": curve,
     }
     (out / "student.yml").write_text(yaml.safe_dump(record, sort_keys=False))
-    print(f"saved {out / 'student.pt'}: iteration {best[1]['iteration']}, validation success "
-          f"{summary_success_text(best[1])}, strict {best[1]['success_strict']:.1%} "
-          f"({record['wall_time_s']} s)", flush=True)
+    if best is None:
+        print(f"saved {out / 'student.pt'}: no iteration validated, the current weights",
+              flush=True)
+    else:
+        print(f"saved {out / 'student.pt'}: iteration {best[1]['iteration']}, validation "
+              f"success {summary_success_text(best[1])}, strict "
+              f"{best[1]['success_strict']:.1%} ({record['wall_time_s']} s)", flush=True)
     return record
+
+
+def _iteration(k: int, a: argparse.Namespace, stop: DeferredSignals, net: Any, opt: Any,
+               player: RecurrentPlayer, teacher: ModelPolicy, venv: Any, obs: Any,
+               eval_env: Any, layouts: tuple[Any, Any, Any], t_size: int,
+               targets: Sequence[str], steps: int, data: tuple[list[Any], ...],
+               rng: np.random.Generator, curve: list[dict[str, Any]], best: Any,
+               t0: float) -> tuple[Any, Any]:
+    """Iteration ``k`` of :func:`train`: a rollout of ``steps`` control steps on every env
+    (episodes completed into ``data``), the fit, every ``a.eval_every`` iterations the
+    validation; appends its point to ``curve``; returns the next observation and the best
+    validated iteration ``(rank, summary, weights)`` (None: none yet)."""
+
+    s_layout, t_layout, r_layout = layouts
+    xs, ys, open_x, open_y = data
+    for group in opt.param_groups:
+        group["lr"] = a.lr + (a.lr_final - a.lr) * k / max(a.iterations - 1, 1)
+    for _ in range(steps):
+        stop.check()
+        t_obs = imitation.teacher_view(obs, t_layout, r_layout, t_size)[imitation.BLIND_KEY]
+        t_act, _ = teacher.model.predict(teacher.normalize(t_obs), deterministic=True)
+        x = imitation.blind_view(obs[imitation.BLIND_KEY], s_layout, r_layout, None)
+        x = x.astype(np.float32)
+        s_act = player.act(x)
+        use_teacher = rng.random(a.n_envs) < 0.5 ** k
+        obs, _, dones, _ = venv.step(np.where(use_teacher[:, None], t_act, s_act))
+        label = np.clip(np.asarray(t_act, dtype=np.float32), -1.0, 1.0)
+        for i in range(a.n_envs):
+            open_x[i].append(x[i])
+            open_y[i].append(label[i])
+            if dones[i]:
+                xs.append(np.stack(open_x[i]))
+                ys.append(np.stack(open_y[i]))
+                open_x[i], open_y[i] = [], []
+        if dones.any():
+            player.clear(np.flatnonzero(dones))
+    loss = fit_iteration(net, opt, xs, ys, a, rng, stop)
+    point: dict[str, Any] = {"iteration": k, "episodes": len(xs), "loss": loss,
+                             "wall_s": round(time.time() - t0, 1)}
+    if (k + 1) % a.eval_every == 0 or k == a.iterations - 1:
+        summary = imitation.validate(RecurrentPlayer(net, a.eval_episodes), eval_env,
+                                     targets, a.eval_seed, stop)
+        point.update(success_rate=summary["success_rate"],
+                     success_strict=summary["success_strict"],
+                     failure_rate=summary["failure_rate"])
+        rank = ((summary["success_rate"], summary["success_strict"]) if a.select == "success"
+                else (summary["success_strict"], summary["success_rate"]))
+        if best is None or rank > best[0]:
+            best = (rank, {**summary, "iteration": k},
+                    {key: v.clone() for key, v in net.state_dict().items()})
+    curve.append(point)
+    print(" ".join(f"{key} {v:.4g}" if isinstance(v, float) else f"{key} {v}"
+                   for key, v in point.items()), flush=True)
+    return obs, best
 
 
 def load_student(run: Path) -> tuple[Any, dict[str, Any]]:

@@ -101,3 +101,38 @@ def test_playing_runs_no_code_from_the_files(student, tmp_path, capsys):
     (bad / "student.yml").write_text("!!python/object/apply:os.system ['echo hi']\n")
     with pytest.raises(UserError, match="not plain YAML"):
         rd.main(["--play", str(bad), "--eval-episodes", "4"])
+
+
+def test_an_interrupted_run_saves_its_best_validated_student(tmp_path):
+    """SIGINT during the run stops it at the next env step or minibatch; the student of the
+    best validated iteration is saved and re-validates to its record."""
+    import os
+    import signal
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    root = Path(__file__).resolve().parents[2]
+    out = tmp_path / "student"
+    cmd = [sys.executable, "-W", "ignore", "-m", "agents.recurrent_distill", "--teacher",
+           TEACHER, "--env-kwargs", *STUDENT, *TINY, "--iterations", "1000", "--out", str(out)]
+    proc = subprocess.Popen(cmd, cwd=root, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                            text=True, env={**os.environ, "PYTHONPATH": str(root)})
+    assert proc.stdout is not None
+    try:
+        for line in proc.stdout:
+            if line.startswith("iteration 1 "):
+                break
+        proc.send_signal(signal.SIGINT)
+        rest, err = proc.communicate(timeout=300)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+    assert proc.returncode == 0, err[-2000:]
+    assert "SIGINT" in err and "Traceback" not in err, err[-2000:]
+    record = yaml.safe_load((out / "student.yml").read_text())
+    assert record["interrupted"] is True and len(record["curve"]) >= 2
+    best = record["best_validation"]
+    summary = rd.main(["--play", str(out), "--eval-episodes", "4", "--eval-seed", "5000"])
+    assert summary["success_rate"] == best["success_rate"]
+    assert summary["median_x_mm"] == best["median_x_mm"]
