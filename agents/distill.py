@@ -69,8 +69,10 @@ from agents.runs.records import SELECT_RULES, DaggerSchedule, DistillOutcome, Ev
 from agents.runs.writing import write_args, write_run_config
 from agents.sb3.imitation import (
     BLIND_KEY,
+    PAIR_KEYS,
     blind_view,
     imitation_loss,
+    lr_at,
     rollout_layout,
     teacher_view,
     validate,
@@ -175,15 +177,6 @@ def parse_args(argv: Sequence[str] | None = None) -> DistillSettings:
                             "length)")
     return DistillSettings.from_namespace(ns)
 
-
-#: Observation keywords in which the student may read more than its teacher (its observation
-#: then contains the teacher's: more frames of history, tactile entries added to each frame).
-VIEW_KEYS = ("history_len", "obs_mode", "onset_obs")
-#: Action keywords in which student and teacher may differ: the teacher acts in the student's
-#: env, so a student with a set-point ramp of its own is labelled by a teacher acting with it.
-ACTUATION_KEYS = ("setpoint_ramp_ms",)
-#: The keywords in which student and teacher may differ besides the reward's.
-PAIR_KEYS = (*VIEW_KEYS, *ACTUATION_KEYS)
 
 
 def check_pair(teacher: ModelPolicy, env_id: str, hp: dict[str, Any],
@@ -335,13 +328,6 @@ def minibatches(n: int, schedule: DaggerSchedule) -> Iterator[Any]:
         perm = torch.randperm(n)
         for start in range(0, n, b):
             yield perm[start:start + b]
-
-
-def lr_at(k: int, iterations: int, lr: float, lr_final: float) -> float:
-    """Adam step size at iteration ``k`` of ``iterations``: linear from ``lr`` (k = 0) to
-    ``lr_final`` (k = iterations - 1)."""
-    frac = k / (iterations - 1) if iterations > 1 else 0.0
-    return lr + (lr_final - lr) * frac
 
 
 @dataclass

@@ -54,8 +54,6 @@ from agents.sb3.interrupts import DeferredSignals, Interrupted
 from agents.sb3.native_vec_env import make_sb3_vec_env
 from agents.sb3.training import make_validation_env
 
-#: Env keywords the student may set apart from the teacher's (what it reads, how it actuates).
-STUDENT_KEYS = ("obs_mode", "history_len", "onset_obs", "setpoint_ramp_ms")
 #: Largest ``student.yml`` read by ``--play`` (bytes).
 MAX_RECORD_BYTES = 1_000_000
 
@@ -130,11 +128,11 @@ def episode_batch(xs: Sequence[np.ndarray], ys: Sequence[np.ndarray]
 
 def parse_args(argv: Sequence[str] | None = None) -> argparse.Namespace:
     p = ArgumentParser(prog="python -m agents.recurrent_distill",
-                                description=__doc__.split("\n\n")[0])
+                       description=__doc__.split("\n\n")[0])
     p.add_argument("--teacher", help="blind teacher: a shipped model name or a run directory")
     p.add_argument("--env-kwargs", nargs="*", default=[], metavar="KEY:VALUE",
                    help="the student's keywords apart from the teacher's: "
-                        + ", ".join(STUDENT_KEYS))
+                        + ", ".join(imitation.PAIR_KEYS))
     p.add_argument("--out", help="output directory (must not exist)")
     p.add_argument("--play", metavar="RUN", help="re-validate the student saved in RUN")
     p.add_argument("--iterations", type=int, default=60)
@@ -177,12 +175,12 @@ def parse_args(argv: Sequence[str] | None = None) -> argparse.Namespace:
 
 def student_kwargs(teacher: ModelPolicy, items: Sequence[str]) -> dict[str, Any]:
     """The student's env keywords: the teacher's, with ``items`` (``key:value``, keys of
-    :data:`STUDENT_KEYS`) applied."""
+    :data:`~agents.sb3.imitation.PAIR_KEYS`) applied."""
     extra = parse_kv(list(items), "--env-kwargs")
-    unknown = sorted(set(extra) - set(STUDENT_KEYS))
+    unknown = sorted(set(extra) - set(imitation.PAIR_KEYS))
     if unknown:
-        raise UserError(f"--env-kwargs: the student may set only {', '.join(STUDENT_KEYS)} "
-                        f"(got {', '.join(unknown)})")
+        raise UserError("--env-kwargs: the student may set only "
+                        f"{', '.join(imitation.PAIR_KEYS)} (got {', '.join(unknown)})")
     return {**teacher.env_kwargs, **extra}
 
 
@@ -305,7 +303,7 @@ def _iteration(k: int, a: argparse.Namespace, stop: DeferredSignals, net: Any, o
     s_layout, t_layout, r_layout = layouts
     xs, ys, open_x, open_y = data
     for group in opt.param_groups:
-        group["lr"] = a.lr + (a.lr_final - a.lr) * k / max(a.iterations - 1, 1)
+        group["lr"] = imitation.lr_at(k, a.iterations, a.lr, a.lr_final)
     for _ in range(steps):
         stop.check()
         t_obs = imitation.teacher_view(obs, t_layout, r_layout, t_size)[imitation.BLIND_KEY]

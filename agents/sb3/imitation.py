@@ -1,8 +1,10 @@
 """What a teacher-student distillation shares with every student: the observation views of
 teacher and student on one rollout (:func:`view_layout`, :func:`rollout_layout`,
-:func:`teacher_view`, :func:`blind_view`), the imitation loss (:func:`imitation_loss`) and the
-validation of a student on the validation goals (:func:`validate`). The library of
-``agents.distill`` (an SB3 student) and ``agents.recurrent_distill`` (a recurrent one)."""
+:func:`teacher_view`, :func:`blind_view`), the keywords in which they may differ
+(:data:`PAIR_KEYS`), the imitation loss (:func:`imitation_loss`) and its step-size schedule
+(:func:`lr_at`), and the validation of a student on the validation goals (:func:`validate`).
+The library of ``agents.distill`` (an SB3 student) and ``agents.recurrent_distill`` (a
+recurrent one)."""
 
 from __future__ import annotations
 
@@ -19,6 +21,14 @@ from softhand_env.envs.observation import ObservationLayout
 
 #: Dict-observation key of the blind part (what the student reads).
 BLIND_KEY = "observation"
+#: Observation keywords in which the student may read more than its teacher (its observation
+#: then contains the teacher's: more frames of history, tactile entries added to each frame).
+VIEW_KEYS = ("history_len", "obs_mode", "onset_obs")
+#: Action keywords in which student and teacher may differ: the teacher acts in the student's
+#: env, so a student with a set-point ramp of its own is labelled by a teacher acting with it.
+ACTUATION_KEYS = ("setpoint_ramp_ms",)
+#: The keywords in which student and teacher may differ besides the reward's.
+PAIR_KEYS = (*VIEW_KEYS, *ACTUATION_KEYS)
 
 
 def view_layout(kwargs: dict[str, Any]) -> ObservationLayout:
@@ -133,3 +143,10 @@ def imitation_loss(pred: Any, label: Any, squeeze_expectile: float = 0.5) -> Any
     squeeze = (err[:, 0] + err[:, 1]) / 2 ** 0.5
     weight = 2 * (squeeze_expectile * (squeeze >= 0) + (1 - squeeze_expectile) * (squeeze < 0))
     return (rotate ** 2 + weight * squeeze ** 2).mean() / 2
+
+
+def lr_at(k: int, iterations: int, lr: float, lr_final: float) -> float:
+    """Adam step size at iteration ``k`` of ``iterations``: linear from ``lr`` (k = 0) to
+    ``lr_final`` (k = iterations - 1)."""
+    frac = k / (iterations - 1) if iterations > 1 else 0.0
+    return lr + (lr_final - lr) * frac
